@@ -1,0 +1,16 @@
+//! Acceleration structures for empty-space skipping (ESS).
+//!
+//! [`MacrocellGrid`] holds the value range of every macrocell (a cube of
+//! voxels; one brick in a bricked volume). It depends only on the data, so it
+//! is built once when a volume is opened. [`SkipGrid`] is derived from it for
+//! one transfer function (or iso value): which macrocells can contribute, and
+//! for each empty one its Chebyshev distance, in cells, to the nearest
+//! non-empty one. A ray in an empty cell with distance `d` can jump straight
+//! out of the cube of `2d − 1` empty cells around it, so crossing empty space
+//! costs a handful of box exits instead of one test per step.
+
+mod macrocell;
+mod skip;
+
+pub use macrocell::MacrocellGrid;
+pub use skip::SkipGrid;

@@ -1,0 +1,291 @@
+//! Cameras (SPEC §3): a perspective or orthographic view that turns a pixel
+//! into a ray, and projects a box to the screen rectangle it covers.
+
+use glam::Vec3;
+
+use crate::geometry::{Aabb, Ray};
+
+/// Perspective or orthographic projection.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub enum Projection {
+    /// Rays leave the eye point.
+    #[default]
+    Perspective,
+    /// Rays are parallel to the view direction; the image plane is
+    /// `2·tan(fov/2)·|target − position|` high.
+    Orthographic,
+}
+
+/// A camera: position, look-at point, up vector, vertical field of view and
+/// image size.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Camera {
+    /// Eye position P.
+    pub position: Vec3,
+    /// Look-at point T.
+    pub target: Vec3,
+    /// Up vector U (need not be orthogonal to the view direction).
+    pub up: Vec3,
+    /// Vertical field of view in degrees.
+    pub fov_y_deg: f32,
+    /// Image width in pixels.
+    pub width: u32,
+    /// Image height in pixels.
+    pub height: u32,
+    /// Perspective or orthographic.
+    pub projection: Projection,
+}
+
+/// The camera's orthonormal frame and the constants of the pixel-to-ray map,
+/// computed once per frame.
+#[derive(Debug, Clone, Copy)]
+pub struct CameraFrame {
+    /// Forward, `d = normalize(T − P)`.
+    pub forward: Vec3,
+    /// Right, `r = normalize(d × U)`.
+    pub right: Vec3,
+    /// True up, `u = r × d`.
+    pub up: Vec3,
+    /// `tan(fov/2)`.
+    pub half_height: f32,
+    /// `W/H`.
+    pub aspect: f32,
+    /// `|T − P|` (sizes the orthographic image plane).
+    pub distance: f32,
+    position: Vec3,
+    projection: Projection,
+    width: f32,
+    height: f32,
+}
+
+/// A rectangle of pixels, `[x0, x1) × [y0, y1)`.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub struct PixelRect {
+    /// First column.
+    pub x0: u32,
+    /// First row.
+    pub y0: u32,
+    /// One past the last column.
+    pub x1: u32,
+    /// One past the last row.
+    pub y1: u32,
+}
+
+impl PixelRect {
+    /// Number of pixels.
+    pub fn area(&self) -> u64 {
+        (self.x1.saturating_sub(self.x0)) as u64 * (self.y1.saturating_sub(self.y0)) as u64
+    }
+
+    /// True when `(x, y)` is inside.
+    pub fn contains(&self, x: u32, y: u32) -> bool {
+        x >= self.x0 && x < self.x1 && y >= self.y0 && y < self.y1
+    }
+}
+
+impl Camera {
+    /// A perspective camera with up = +Y and a 45° field of view.
+    pub fn look_at(position: Vec3, target: Vec3, width: u32, height: u32) -> Self {
+        Camera {
+            position,
+            target,
+            up: Vec3::Y,
+            fov_y_deg: 45.0,
+            width,
+            height,
+            projection: Projection::Perspective,
+        }
+    }
+
+    /// A camera looking at the centre of `bounds` from the +z side, far enough
+    /// that the whole box is in view (the default view of SPEC §6).
+    pub fn framing(bounds: &Aabb, width: u32, height: u32, fov_y_deg: f32) -> Self {
+        let center = bounds.center();
+        let radius = ((bounds.max - bounds.min).length() * 0.5).max(1e-3);
+        let half = (fov_y_deg.to_radians() * 0.5).tan();
+        let aspect = width as f32 / height.max(1) as f32;
+        let half_min = half.min(half * aspect);
+        // Distance at which a sphere of `radius` fits in the narrower half-angle.
+        let sin = half_min / (1.0 + half_min * half_min).sqrt();
+        let dist = radius / sin * 1.05;
+        let mut c = Camera::look_at(center + Vec3::Z * dist, center, width, height);
+        c.fov_y_deg = fov_y_deg;
+        c
+    }
+
+    /// The frame of this camera, or `None` when it is degenerate (target at
+    /// the eye, up parallel to the view direction, zero-sized image, or a field
+    /// of view outside (0°, 180°)).
+    pub fn frame(&self) -> Option<CameraFrame> {
+        let to = self.target - self.position;
+        let distance = to.length();
+        let forward = to.try_normalize()?;
+        let right = forward.cross(self.up).try_normalize()?;
+        let up = right.cross(forward);
+        if self.width == 0 || self.height == 0 || !(self.fov_y_deg > 0.0 && self.fov_y_deg < 180.0)
+        {
+            return None;
+        }
+        Some(CameraFrame {
+            forward,
+            right,
+            up,
+            half_height: (self.fov_y_deg.to_radians() * 0.5).tan(),
+            aspect: self.width as f32 / self.height as f32,
+            distance,
+            position: self.position,
+            projection: self.projection,
+            width: self.width as f32,
+            height: self.height as f32,
+        })
+    }
+}
+
+impl CameraFrame {
+    /// The ray through the centre of pixel `(i, j)` (i from the left, j from
+    /// the top), with a unit direction.
+    #[inline]
+    pub fn ray(&self, i: u32, j: u32) -> Ray {
+        let sx = (2.0 * (i as f32 + 0.5) / self.width - 1.0) * self.half_height * self.aspect;
+        let sy = (1.0 - 2.0 * (j as f32 + 0.5) / self.height) * self.half_height;
+        match self.projection {
+            Projection::Perspective => Ray {
+                origin: self.position,
+                dir: (self.forward + sx * self.right + sy * self.up).normalize(),
+            },
+            Projection::Orthographic => Ray {
+                origin: self.position + (sx * self.right + sy * self.up) * self.distance,
+                dir: self.forward,
+            },
+        }
+    }
+
+    /// Continuous pixel coordinates `(i, j)` whose ray passes through world
+    /// point `p` (pixel centres are at `k + 0.5`), or `None` when `p` is not in
+    /// front of the camera.
+    pub fn project(&self, p: Vec3) -> Option<(f32, f32)> {
+        let v = p - self.position;
+        let z = v.dot(self.forward);
+        let (sx, sy) = match self.projection {
+            Projection::Perspective => {
+                if z <= 1e-6 {
+                    return None;
+                }
+                (v.dot(self.right) / z, v.dot(self.up) / z)
+            }
+            Projection::Orthographic => {
+                if z < 0.0 {
+                    return None;
+                }
+                (
+                    v.dot(self.right) / self.distance,
+                    v.dot(self.up) / self.distance,
+                )
+            }
+        };
+        let nx = sx / (self.half_height * self.aspect);
+        let ny = sy / self.half_height;
+        Some((
+            (nx + 1.0) * 0.5 * self.width,
+            (1.0 - ny) * 0.5 * self.height,
+        ))
+    }
+
+    /// The pixels whose rays can hit `bounds`: the projected box's rectangle
+    /// grown by one pixel, clamped to the image; the whole image when part of
+    /// the box is behind the eye (the camera is inside or beside it).
+    pub fn screen_rect(&self, bounds: &Aabb) -> PixelRect {
+        let full = PixelRect {
+            x0: 0,
+            y0: 0,
+            x1: self.width as u32,
+            y1: self.height as u32,
+        };
+        let (mut lo, mut hi) = (Vec3::splat(f32::INFINITY), Vec3::splat(f32::NEG_INFINITY));
+        for c in bounds.corners() {
+            match self.project(c) {
+                Some((x, y)) => {
+                    lo = lo.min(Vec3::new(x, y, 0.0));
+                    hi = hi.max(Vec3::new(x, y, 0.0));
+                }
+                None => return full,
+            }
+        }
+        let clamp_x = |v: f32| v.clamp(0.0, self.width) as u32;
+        let clamp_y = |v: f32| v.clamp(0.0, self.height) as u32;
+        let rect = PixelRect {
+            x0: clamp_x((lo.x - 1.5).floor()),
+            y0: clamp_y((lo.y - 1.5).floor()),
+            x1: clamp_x((hi.x + 1.5).ceil()),
+            y1: clamp_y((hi.y + 1.5).ceil()),
+        };
+        if rect.x0 >= rect.x1 || rect.y0 >= rect.y1 {
+            PixelRect::default()
+        } else {
+            rect
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn centre_pixel_looks_at_target() {
+        let cam = Camera::look_at(Vec3::new(0.0, 0.0, 10.0), Vec3::ZERO, 101, 101);
+        let f = cam.frame().unwrap();
+        let r = f.ray(50, 50);
+        assert!((r.dir - Vec3::NEG_Z).length() < 1e-6);
+        // Pixel (0, 0) is top-left: ray goes left (-x) and up (+y).
+        let r = f.ray(0, 0);
+        assert!(r.dir.x < 0.0 && r.dir.y > 0.0);
+    }
+
+    #[test]
+    fn projection_inverts_ray() {
+        for proj in [Projection::Perspective, Projection::Orthographic] {
+            let mut cam =
+                Camera::look_at(Vec3::new(3.0, 4.0, 12.0), Vec3::new(0.5, -1.0, 0.0), 64, 48);
+            cam.projection = proj;
+            cam.fov_y_deg = 60.0;
+            let f = cam.frame().unwrap();
+            for (i, j) in [(0, 0), (10, 20), (63, 47), (31, 5)] {
+                let r = f.ray(i, j);
+                let (x, y) = f.project(r.at(7.0)).unwrap();
+                assert!((x - (i as f32 + 0.5)).abs() < 1e-3, "{proj:?} {x} {i}");
+                assert!((y - (j as f32 + 0.5)).abs() < 1e-3, "{proj:?} {y} {j}");
+            }
+        }
+    }
+
+    #[test]
+    fn every_pixel_whose_ray_hits_the_box_is_in_the_screen_rect() {
+        let mut rng = fastrand::Rng::with_seed(7);
+        let b = Aabb::new(Vec3::new(-1.0, -2.0, 0.5), Vec3::new(3.0, 1.0, 2.0));
+        for n in 0..200 {
+            let pos = Vec3::new(
+                rng.f32() * 20.0 - 10.0,
+                rng.f32() * 20.0 - 10.0,
+                rng.f32() * 20.0 - 10.0,
+            );
+            let mut cam = Camera::look_at(pos, b.center(), 40, 30);
+            cam.fov_y_deg = 20.0 + rng.f32() * 100.0;
+            if n % 2 == 1 {
+                cam.projection = Projection::Orthographic;
+            }
+            let Some(f) = cam.frame() else { continue };
+            let rect = f.screen_rect(&b);
+            for j in 0..30 {
+                for i in 0..40 {
+                    if b.intersect(&f.ray(i, j)).is_some() {
+                        assert!(
+                            rect.contains(i, j),
+                            "pixel {i},{j} hits but is outside {rect:?} ({cam:?})"
+                        );
+                    }
+                }
+            }
+        }
+    }
+}

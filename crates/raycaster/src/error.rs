@@ -1,0 +1,116 @@
+//! Error types of the library.
+//!
+//! Every error that comes from a file names the file, so a message printed on
+//! its own (as the command-line tools do) tells the user what went wrong where.
+
+use std::path::{Path, PathBuf};
+
+/// Anything that can go wrong while opening, reading or writing a volume or a
+/// transfer function.
+#[derive(Debug, thiserror::Error)]
+pub enum Error {
+    /// The operating system refused an operation on a file.
+    #[error("{}: {source}", path.display())]
+    Io {
+        /// The file concerned.
+        path: PathBuf,
+        /// What the operating system said.
+        source: std::io::Error,
+    },
+    /// The file's content does not follow its format.
+    #[error("{}: {kind}", path.display())]
+    Format {
+        /// The file concerned.
+        path: PathBuf,
+        /// What is wrong with it.
+        kind: FormatError,
+    },
+    /// A transfer function file or value is invalid.
+    #[error("{}: {message}", path.display())]
+    TransferFunction {
+        /// The file concerned (empty when the TF did not come from a file).
+        path: PathBuf,
+        /// What is wrong with it.
+        message: String,
+    },
+    /// An argument given by the caller is out of range.
+    #[error("{0}")]
+    InvalidArgument(String),
+}
+
+impl Error {
+    /// Wraps an I/O error with the path it concerns.
+    pub fn io(path: &Path, source: std::io::Error) -> Self {
+        Error::Io {
+            path: path.to_path_buf(),
+            source,
+        }
+    }
+
+    /// Wraps a format problem with the path it concerns.
+    pub fn format(path: &Path, kind: FormatError) -> Self {
+        Error::Format {
+            path: path.to_path_buf(),
+            kind,
+        }
+    }
+}
+
+/// The ways a volume file can be malformed.
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+pub enum FormatError {
+    /// The file ends before the header does.
+    #[error("file is {found} bytes long, shorter than the {expected}-byte header")]
+    TooShortForHeader {
+        /// Header length in bytes.
+        expected: u64,
+        /// File length in bytes.
+        found: u64,
+    },
+    /// A dimension is zero.
+    #[error("dimension {axis} is 0 (every dimension must be at least 1)")]
+    ZeroDimension {
+        /// `'X'`, `'Y'` or `'Z'`.
+        axis: char,
+    },
+    /// A spacing is NaN, infinite, zero or negative.
+    #[error("spacing {axis} is {value} (must be finite and greater than 0)")]
+    BadSpacing {
+        /// `'X'`, `'Y'` or `'Z'`.
+        axis: char,
+        /// The offending value.
+        value: f32,
+    },
+    /// The layout byte is neither linear nor bricked.
+    #[error("unknown layout byte {0} (expected 1 = linear or 2 = bricked)")]
+    UnknownLayout(u8),
+    /// A bricked file declares a brick side below 2.
+    #[error("brick side {0} is invalid (must be 2..=255)")]
+    BadBrickSize(u8),
+    /// The dimensions describe more bytes than fit in 64 bits.
+    #[error("dimensions {x}x{y}x{z} overflow the addressable size")]
+    SizeOverflow {
+        /// Dimension X.
+        x: u64,
+        /// Dimension Y.
+        y: u64,
+        /// Dimension Z.
+        z: u64,
+    },
+    /// The file holds a different number of bytes than the header implies.
+    #[error("expected {expected} bytes ({detail}), found {found}")]
+    WrongLength {
+        /// Byte count implied by the header.
+        expected: u64,
+        /// Byte count of the file.
+        found: u64,
+        /// How the expected count was derived.
+        detail: String,
+    },
+    /// The format is not recognised.
+    #[error("unrecognised volume format ({0})")]
+    Unrecognised(String),
+}
+
+/// Shorthand for results of this crate.
+pub type Result<T, E = Error> = std::result::Result<T, E>;

@@ -1,0 +1,372 @@
+//! The `.vol` format (SPEC §1): a 26-byte little-endian header followed by
+//! `u8` samples in the linear or the bricked layout.
+
+use std::io::Write;
+use std::path::Path;
+
+use glam::{UVec3, Vec3};
+use nom::Parser;
+use nom::number::complete::{le_f32, le_u32, u8 as byte};
+
+use crate::error::{Error, FormatError, Result};
+use crate::storage::{LoadMode, Storage};
+use crate::volume::{BrickGrid, BrickedVolume, Grid, LinearVolume, Volume};
+
+/// Header length in bytes.
+pub const HEADER_LEN: usize = 26;
+
+/// Layout byte value for the linear layout.
+pub const LAYOUT_LINEAR: u8 = 1;
+/// Layout byte value for the bricked layout.
+pub const LAYOUT_BRICKED: u8 = 2;
+
+/// The sample order of a `.vol` file.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum VolLayout {
+    /// z fastest, one array.
+    Linear,
+    /// Overlapping bricks of side B.
+    Bricked {
+        /// B, 2..=255.
+        side: u8,
+    },
+}
+
+/// A parsed and validated `.vol` header.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct VolHeader {
+    /// Dimensions, each >= 1.
+    pub dims: UVec3,
+    /// Spacing, each finite and > 0.
+    pub spacing: Vec3,
+    /// Sample order.
+    pub layout: VolLayout,
+}
+
+/// The raw fields, before validation.
+struct RawHeader {
+    dims: [u32; 3],
+    spacing: [f32; 3],
+    layout: u8,
+    extra: u8,
+}
+
+fn raw_header(input: &[u8]) -> nom::IResult<&[u8], RawHeader> {
+    let (rest, (x, y, z, sx, sy, sz, layout, extra)) =
+        (le_u32, le_u32, le_u32, le_f32, le_f32, le_f32, byte, byte).parse(input)?;
+    Ok((
+        rest,
+        RawHeader {
+            dims: [x, y, z],
+            spacing: [sx, sy, sz],
+            layout,
+            extra,
+        },
+    ))
+}
+
+impl VolHeader {
+    /// Parses and validates the first 26 bytes of `bytes`.
+    pub fn parse(bytes: &[u8]) -> Result<Self, FormatError> {
+        let (_, raw) = raw_header(bytes).map_err(|_| FormatError::TooShortForHeader {
+            expected: HEADER_LEN as u64,
+            found: bytes.len() as u64,
+        })?;
+        for (axis, &d) in ['X', 'Y', 'Z'].iter().zip(&raw.dims) {
+            if d == 0 {
+                return Err(FormatError::ZeroDimension { axis: *axis });
+            }
+        }
+        for (axis, &s) in ['X', 'Y', 'Z'].iter().zip(&raw.spacing) {
+            if !(s.is_finite() && s > 0.0) {
+                return Err(FormatError::BadSpacing {
+                    axis: *axis,
+                    value: s,
+                });
+            }
+        }
+        let layout = match raw.layout {
+            LAYOUT_LINEAR => VolLayout::Linear,
+            LAYOUT_BRICKED if raw.extra >= 2 => VolLayout::Bricked { side: raw.extra },
+            LAYOUT_BRICKED => return Err(FormatError::BadBrickSize(raw.extra)),
+            other => return Err(FormatError::UnknownLayout(other)),
+        };
+        let header = VolHeader {
+            dims: UVec3::from_array(raw.dims),
+            spacing: Vec3::from_array(raw.spacing),
+            layout,
+        };
+        header.sample_count()?;
+        Ok(header)
+    }
+
+    /// The 26 header bytes.
+    pub fn to_bytes(&self) -> [u8; HEADER_LEN] {
+        let mut b = [0u8; HEADER_LEN];
+        for i in 0..3 {
+            b[i * 4..i * 4 + 4].copy_from_slice(&self.dims[i].to_le_bytes());
+            b[12 + i * 4..16 + i * 4].copy_from_slice(&self.spacing[i].to_le_bytes());
+        }
+        match self.layout {
+            VolLayout::Linear => b[24] = LAYOUT_LINEAR,
+            VolLayout::Bricked { side } => {
+                b[24] = LAYOUT_BRICKED;
+                b[25] = side;
+            }
+        }
+        b
+    }
+
+    /// Number of sample bytes the header implies.
+    pub fn sample_count(&self) -> Result<u64, FormatError> {
+        let d = self.dims.as_u64vec3();
+        let overflow = FormatError::SizeOverflow {
+            x: d.x,
+            y: d.y,
+            z: d.z,
+        };
+        match self.layout {
+            VolLayout::Linear => {
+                d.x.checked_mul(d.y)
+                    .and_then(|v| v.checked_mul(d.z))
+                    .ok_or(overflow)
+            }
+            VolLayout::Bricked { side } => BrickGrid::new(self.dims, side as u32)
+                .total_len()
+                .ok_or(overflow),
+        }
+    }
+
+    /// Total file length the header implies.
+    pub fn file_len(&self) -> Result<u64, FormatError> {
+        let d = self.dims;
+        self.sample_count()?
+            .checked_add(HEADER_LEN as u64)
+            .ok_or(FormatError::SizeOverflow {
+                x: d.x as u64,
+                y: d.y as u64,
+                z: d.z as u64,
+            })
+    }
+
+    fn length_detail(&self) -> String {
+        let d = self.dims;
+        match self.layout {
+            VolLayout::Linear => format!("26-byte header + {}x{}x{} samples", d.x, d.y, d.z),
+            VolLayout::Bricked { side } => {
+                let n = BrickGrid::new(d, side as u32).count;
+                format!(
+                    "26-byte header + {}x{}x{} bricks of {side}^3 samples",
+                    n.x, n.y, n.z
+                )
+            }
+        }
+    }
+
+    /// The grid this header describes (origin 0).
+    pub fn grid(&self) -> Grid {
+        Grid::new(self.dims, self.spacing)
+    }
+}
+
+/// Reads and validates the header of `path` and checks the file's length.
+pub fn read_header(path: &Path) -> Result<VolHeader> {
+    use std::io::Read;
+    let mut f = std::fs::File::open(path).map_err(|e| Error::io(path, e))?;
+    let len = f.metadata().map_err(|e| Error::io(path, e))?.len();
+    let mut buf = Vec::with_capacity(HEADER_LEN);
+    Read::by_ref(&mut f)
+        .take(HEADER_LEN as u64)
+        .read_to_end(&mut buf)
+        .map_err(|e| Error::io(path, e))?;
+    let header = VolHeader::parse(&buf).map_err(|k| Error::format(path, k))?;
+    let expected = header.file_len().map_err(|k| Error::format(path, k))?;
+    if expected != len {
+        return Err(Error::format(
+            path,
+            FormatError::WrongLength {
+                expected,
+                found: len,
+                detail: header.length_detail(),
+            },
+        ));
+    }
+    Ok(header)
+}
+
+/// A `.vol` volume in whichever layout the file has.
+#[derive(Debug)]
+pub enum VolVolume {
+    /// Linear layout.
+    Linear(LinearVolume<u8>),
+    /// Bricked layout.
+    Bricked(BrickedVolume<u8>),
+}
+
+/// Opens a `.vol` file, mapped or read into RAM.
+pub fn open(path: &Path, mode: LoadMode) -> Result<VolVolume> {
+    let header = read_header(path)?;
+    let count = header.sample_count().map_err(|k| Error::format(path, k))?;
+    let count = usize::try_from(count).map_err(|_| {
+        Error::InvalidArgument(format!("{}: too large for this machine", path.display()))
+    })?;
+    let storage = Storage::<u8>::open(path, HEADER_LEN as u64, count, mode)?;
+    Ok(match header.layout {
+        VolLayout::Linear => VolVolume::Linear(LinearVolume::new(header.grid(), storage)?),
+        VolLayout::Bricked { side } => {
+            VolVolume::Bricked(BrickedVolume::new(header.grid(), side as u32, storage)?)
+        }
+    })
+}
+
+/// Writes `volume` to `path` in `layout`. The file is written under a
+/// temporary name in the same directory and renamed when complete, so a
+/// reader never sees a partial file.
+pub fn write<V: Volume<Sample = u8>>(path: &Path, volume: &V, layout: VolLayout) -> Result<()> {
+    let grid = volume.grid();
+    let header = VolHeader {
+        dims: grid.dims,
+        spacing: grid.spacing,
+        layout,
+    };
+    let d = grid.dims;
+    write_atomically(path, |w| {
+        w.write_all(&header.to_bytes())?;
+        match layout {
+            VolLayout::Linear => {
+                let mut row = Vec::with_capacity(d.z as usize);
+                for x in 0..d.x {
+                    for y in 0..d.y {
+                        row.clear();
+                        row.extend((0..d.z).map(|z| volume.voxel(UVec3::new(x, y, z))));
+                        w.write_all(&row)?;
+                    }
+                }
+            }
+            VolLayout::Bricked { side } => {
+                let bricks = BrickGrid::new(d, side as u32);
+                let len = bricks.brick_len();
+                let total = bricks.total_len().unwrap_or(0);
+                let mut buf = Vec::with_capacity(len as usize);
+                for b in 0..total / len {
+                    buf.clear();
+                    buf.extend(
+                        (b * len..(b + 1) * len)
+                            .map(|i| bricks.voxel_at(i, d).map_or(0, |v| volume.voxel(v))),
+                    );
+                    w.write_all(&buf)?;
+                }
+            }
+        }
+        Ok(())
+    })
+}
+
+/// Runs `fill` on a buffered writer to a temporary file next to `path`, then
+/// renames it to `path`. On any error the temporary file is removed.
+pub fn write_atomically(
+    path: &Path,
+    fill: impl FnOnce(&mut std::io::BufWriter<std::fs::File>) -> std::io::Result<()>,
+) -> Result<()> {
+    let tmp = temp_path_for(path);
+    let result = (|| {
+        let f = std::fs::File::create(&tmp)?;
+        let mut w = std::io::BufWriter::with_capacity(1 << 20, f);
+        fill(&mut w)?;
+        w.flush()?;
+        w.get_ref().sync_data()?;
+        std::fs::rename(&tmp, path)
+    })();
+    result.map_err(|e| {
+        let _ = std::fs::remove_file(&tmp);
+        Error::io(path, e)
+    })
+}
+
+/// The temporary name used while writing `path`: `.NAME.partial-PID` in the same directory.
+pub fn temp_path_for(path: &Path) -> std::path::PathBuf {
+    let name = path
+        .file_name()
+        .map(|n| n.to_string_lossy().into_owned())
+        .unwrap_or_default();
+    path.with_file_name(format!(".{name}.partial-{}", std::process::id()))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn header_bytes(dims: [u32; 3], spacing: [f32; 3], layout: u8, extra: u8) -> Vec<u8> {
+        let mut b = Vec::new();
+        for d in dims {
+            b.extend_from_slice(&d.to_le_bytes());
+        }
+        for s in spacing {
+            b.extend_from_slice(&s.to_le_bytes());
+        }
+        b.push(layout);
+        b.push(extra);
+        b
+    }
+
+    #[test]
+    fn header_round_trip() {
+        let h = VolHeader {
+            dims: UVec3::new(3, 4, 5),
+            spacing: Vec3::new(1.0, 0.5, 2.0),
+            layout: VolLayout::Bricked { side: 7 },
+        };
+        assert_eq!(VolHeader::parse(&h.to_bytes()).unwrap(), h);
+    }
+
+    #[test]
+    fn every_bad_header_case_is_a_typed_error() {
+        use FormatError::*;
+        let cases: Vec<(Vec<u8>, fn(&FormatError) -> bool)> = vec![
+            (vec![1, 2, 3], |e| {
+                matches!(e, TooShortForHeader { found: 3, .. })
+            }),
+            (header_bytes([0, 1, 1], [1.0; 3], 1, 0), |e| {
+                matches!(e, ZeroDimension { axis: 'X' })
+            }),
+            (header_bytes([1, 1, 0], [1.0; 3], 1, 0), |e| {
+                matches!(e, ZeroDimension { axis: 'Z' })
+            }),
+            (header_bytes([1, 1, 1], [1.0, f32::NAN, 1.0], 1, 0), |e| {
+                matches!(e, BadSpacing { axis: 'Y', .. })
+            }),
+            (
+                header_bytes([1, 1, 1], [1.0, 1.0, f32::INFINITY], 1, 0),
+                |e| matches!(e, BadSpacing { axis: 'Z', .. }),
+            ),
+            (header_bytes([1, 1, 1], [0.0, 1.0, 1.0], 1, 0), |e| {
+                matches!(e, BadSpacing { axis: 'X', .. })
+            }),
+            (header_bytes([1, 1, 1], [-1.0, 1.0, 1.0], 1, 0), |e| {
+                matches!(e, BadSpacing { axis: 'X', .. })
+            }),
+            (header_bytes([1, 1, 1], [1.0; 3], 3, 0), |e| {
+                matches!(e, UnknownLayout(3))
+            }),
+            (header_bytes([1, 1, 1], [1.0; 3], 0, 0), |e| {
+                matches!(e, UnknownLayout(0))
+            }),
+            (header_bytes([1, 1, 1], [1.0; 3], 2, 1), |e| {
+                matches!(e, BadBrickSize(1))
+            }),
+            (header_bytes([1, 1, 1], [1.0; 3], 2, 0), |e| {
+                matches!(e, BadBrickSize(0))
+            }),
+            (header_bytes([u32::MAX; 3], [1.0; 3], 1, 0), |e| {
+                matches!(e, SizeOverflow { .. })
+            }),
+            (header_bytes([u32::MAX; 3], [1.0; 3], 2, 2), |e| {
+                matches!(e, SizeOverflow { .. })
+            }),
+        ];
+        for (bytes, check) in cases {
+            let err = VolHeader::parse(&bytes).unwrap_err();
+            assert!(check(&err), "unexpected error {err:?} for {bytes:?}");
+        }
+    }
+}

@@ -1,0 +1,150 @@
+//! Rays and axis-aligned boxes.
+
+use glam::Vec3;
+
+/// A ray `origin + t·dir`; renderers keep `dir` normalised so that `t` is a
+/// world-space distance.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Ray {
+    /// Start point.
+    pub origin: Vec3,
+    /// Direction (unit length for camera rays).
+    pub dir: Vec3,
+}
+
+impl Ray {
+    /// The point at parameter `t`.
+    #[inline]
+    pub fn at(&self, t: f32) -> Vec3 {
+        self.origin + self.dir * t
+    }
+}
+
+/// An axis-aligned box `[min, max]` (inclusive; may be flat along an axis).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Aabb {
+    /// Lower corner.
+    pub min: Vec3,
+    /// Upper corner.
+    pub max: Vec3,
+}
+
+impl Aabb {
+    /// The box with corners `min` and `max`.
+    pub fn new(min: Vec3, max: Vec3) -> Self {
+        Aabb { min, max }
+    }
+
+    /// Centre point.
+    pub fn center(&self) -> Vec3 {
+        (self.min + self.max) * 0.5
+    }
+
+    /// The 8 corners.
+    pub fn corners(&self) -> [Vec3; 8] {
+        let (a, b) = (self.min, self.max);
+        [
+            Vec3::new(a.x, a.y, a.z),
+            Vec3::new(a.x, a.y, b.z),
+            Vec3::new(a.x, b.y, a.z),
+            Vec3::new(a.x, b.y, b.z),
+            Vec3::new(b.x, a.y, a.z),
+            Vec3::new(b.x, a.y, b.z),
+            Vec3::new(b.x, b.y, a.z),
+            Vec3::new(b.x, b.y, b.z),
+        ]
+    }
+
+    /// True when `p` is inside or on the box.
+    pub fn contains(&self, p: Vec3) -> bool {
+        p.cmpge(self.min).all() && p.cmple(self.max).all()
+    }
+
+    /// The parameter interval `[t_in, t_out]` where the ray is inside the box,
+    /// with `t_in` clamped to 0 (a ray starting inside enters at 0); `None`
+    /// when the ray misses or the box lies behind it.
+    ///
+    /// Slab method. An axis along which the ray does not move constrains
+    /// nothing when the origin lies within the slab (boundary included) and
+    /// makes the ray miss otherwise, so rays in a face plane still hit.
+    #[inline]
+    pub fn intersect(&self, ray: &Ray) -> Option<(f32, f32)> {
+        let mut t_in = 0.0f32;
+        let mut t_out = f32::INFINITY;
+        for a in 0..3 {
+            let (o, d) = (ray.origin[a], ray.dir[a]);
+            if d == 0.0 {
+                if o < self.min[a] || o > self.max[a] {
+                    return None;
+                }
+                continue;
+            }
+            let inv = 1.0 / d;
+            let t0 = (self.min[a] - o) * inv;
+            let t1 = (self.max[a] - o) * inv;
+            t_in = t_in.max(t0.min(t1));
+            t_out = t_out.min(t0.max(t1));
+        }
+        (t_in <= t_out).then_some((t_in, t_out))
+    }
+
+    /// The exit parameter of a ray known to start inside the box.
+    #[inline]
+    pub fn exit(&self, origin: Vec3, inv_dir: Vec3) -> f32 {
+        let t0 = (self.min - origin) * inv_dir;
+        let t1 = (self.max - origin) * inv_dir;
+        let far = t0.max(t1);
+        far.x.min(far.y).min(far.z)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn ray_through_unit_box() {
+        let b = Aabb::new(Vec3::ZERO, Vec3::ONE);
+        let r = Ray {
+            origin: Vec3::new(0.5, 0.5, -1.0),
+            dir: Vec3::Z,
+        };
+        assert_eq!(b.intersect(&r), Some((1.0, 2.0)));
+        let miss = Ray {
+            origin: Vec3::new(2.0, 0.5, -1.0),
+            dir: Vec3::Z,
+        };
+        assert_eq!(b.intersect(&miss), None);
+        let inside = Ray {
+            origin: Vec3::splat(0.5),
+            dir: -Vec3::X,
+        };
+        assert_eq!(b.intersect(&inside), Some((0.0, 0.5)));
+        let behind = Ray {
+            origin: Vec3::new(0.5, 0.5, 3.0),
+            dir: Vec3::Z,
+        };
+        assert_eq!(b.intersect(&behind), None);
+    }
+
+    #[test]
+    fn ray_in_a_face_plane_still_hits() {
+        // dir.x = 0 and origin.x on the slab plane: 0 * inf = NaN must not poison.
+        let b = Aabb::new(Vec3::ZERO, Vec3::ONE);
+        let r = Ray {
+            origin: Vec3::new(0.0, 0.5, -1.0),
+            dir: Vec3::Z,
+        };
+        assert_eq!(b.intersect(&r), Some((1.0, 2.0)));
+    }
+
+    #[test]
+    fn flat_box_is_hit_at_one_point() {
+        let b = Aabb::new(Vec3::ZERO, Vec3::new(1.0, 1.0, 0.0));
+        let r = Ray {
+            origin: Vec3::new(0.5, 0.5, -2.0),
+            dir: Vec3::Z,
+        };
+        assert_eq!(b.intersect(&r), Some((2.0, 2.0)));
+    }
+}

@@ -1,0 +1,46 @@
+//! The mean value along a ray ("x-ray").
+
+use glam::{Vec3, Vec4};
+
+use super::{FrameContext, RaySegment};
+use crate::volume::Volume;
+
+/// Running sum and count.
+#[derive(Debug, Clone, Copy, Default)]
+pub struct AvgState {
+    /// Sum of interpolated values (f64: long rays through big volumes).
+    pub sum: f64,
+    /// Number of samples.
+    pub count: u64,
+}
+
+impl AvgState {
+    /// Adds samples `k0..k1`. Every sample counts, so nothing is skipped.
+    #[inline]
+    pub fn integrate<V: Volume>(
+        &mut self,
+        ctx: &FrameContext<'_, V>,
+        seg: &RaySegment,
+        k0: u32,
+        k1: u32,
+    ) -> u64 {
+        let k1 = k1.min(seg.count);
+        let mut sum = 0.0f32;
+        for k in k0..k1 {
+            sum += ctx.volume.sample(seg.pos(k));
+        }
+        let n = k1.saturating_sub(k0) as u64;
+        self.sum += sum as f64;
+        self.count += n;
+        n
+    }
+
+    /// Grey `mean / max` with `A = 1` when the ray had any sample.
+    pub fn resolve<V: Volume>(&self, ctx: &FrameContext<'_, V>) -> Vec4 {
+        if self.count == 0 {
+            return Vec4::ZERO;
+        }
+        let g = (self.sum / self.count as f64) as f32 / ctx.avg_norm;
+        Vec3::splat(g).extend(1.0)
+    }
+}

@@ -1,0 +1,65 @@
+//! Phong shading with a headlight (SPEC §5).
+
+use glam::Vec3;
+
+/// Phong coefficients. The light sits at the eye (a headlight), so the light
+/// and view directions coincide.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Phong {
+    /// Ambient weight.
+    pub ka: f32,
+    /// Diffuse weight.
+    pub kd: f32,
+    /// Specular weight.
+    pub ks: f32,
+    /// Specular exponent.
+    pub shininess: f32,
+    /// Shading is applied only where the gradient magnitude (value units per
+    /// world unit) exceeds this; elsewhere the colour is used as it is.
+    pub gradient_threshold: f32,
+}
+
+impl Default for Phong {
+    fn default() -> Self {
+        Phong {
+            ka: 0.3,
+            kd: 0.7,
+            ks: 0.25,
+            shininess: 20.0,
+            gradient_threshold: 1e-3,
+        }
+    }
+}
+
+impl Phong {
+    /// Defaults with the gradient threshold scaled to the data's value range
+    /// (1% of it per world unit... per voxel of unit spacing).
+    pub fn for_value_range(range: f32) -> Self {
+        Phong {
+            gradient_threshold: (range * 0.01).max(1e-6),
+            ..Phong::default()
+        }
+    }
+
+    /// Diffuse factor and specular term for gradient `g` seen along `view_dir`
+    /// (the ray direction), or `None` when the gradient is too weak to define
+    /// a surface. Lighting is two-sided: a surface is lit from whichever side
+    /// the camera sees it.
+    #[inline]
+    pub fn terms(&self, g: Vec3, view_dir: Vec3) -> Option<(f32, f32)> {
+        let len2 = g.length_squared();
+        if len2 <= self.gradient_threshold * self.gradient_threshold {
+            return None;
+        }
+        // N = -g/|g|, L = V = -view_dir; two-sided: |N·L|.
+        let ndotl = (g.dot(view_dir) / len2.sqrt()).abs();
+        // R = 2(N·L)N − L, so R·V = 2(N·L)² − 1 for a headlight.
+        let rdotv = (2.0 * ndotl * ndotl - 1.0).max(0.0);
+        let spec = if self.ks > 0.0 {
+            self.ks * rdotv.powf(self.shininess)
+        } else {
+            0.0
+        };
+        Some((self.ka + self.kd * ndotl, spec))
+    }
+}

@@ -1,0 +1,89 @@
+//! The serial reference renderer: every pixel on the calling thread, in order.
+
+use std::time::Instant;
+
+use super::plan::{FramePlan, PlanCache, RenderOptions, render_pixel};
+use super::{Frame, FrameStats, Renderer};
+use crate::camera::Camera;
+use crate::error::Result;
+use crate::scene::{Scene, VolumeSource, VolumeVisitor};
+use crate::transfer::TransferFunction;
+use crate::volume::Volume;
+
+/// One thread, pixel by pixel: the reference the parallel renderers match.
+#[derive(Debug, Default)]
+pub struct SerialRenderer {
+    cache: PlanCache,
+}
+
+impl SerialRenderer {
+    /// A new renderer.
+    pub fn new() -> Self {
+        Self::default()
+    }
+}
+
+struct SerialPass<'a> {
+    plan: &'a FramePlan,
+    cells: &'a crate::accel::MacrocellGrid,
+    value_range: (f32, f32),
+    tf: &'a TransferFunction,
+    options: &'a RenderOptions,
+}
+
+impl VolumeVisitor for SerialPass<'_> {
+    type Output = (Vec<u8>, FrameStats);
+
+    fn visit<V: Volume>(self, volume: &V) -> Self::Output {
+        let plan = self.plan;
+        let ctx = plan.context(volume, self.cells, self.value_range, self.tf, self.options);
+        let bg = self.options.background;
+        let bg_rgb = FramePlan::background_rgb(bg);
+        let mut rgb = bg_rgb.repeat(plan.width as usize * plan.height as usize);
+        let mut stats = FrameStats::default();
+        let r = plan.rect;
+        for j in r.y0..r.y1 {
+            for i in r.x0..r.x1 {
+                let px = render_pixel(&ctx, plan, self.options.mode, bg, i, j, &mut stats);
+                let o = 3 * (j as usize * plan.width as usize + i as usize);
+                rgb[o..o + 3].copy_from_slice(&px);
+            }
+        }
+        (rgb, stats)
+    }
+}
+
+impl Renderer for SerialRenderer {
+    fn name(&self) -> &'static str {
+        "serial"
+    }
+
+    fn threads(&self) -> usize {
+        1
+    }
+
+    fn render<V: VolumeSource>(
+        &mut self,
+        scene: &Scene<V>,
+        camera: &Camera,
+        tf: &TransferFunction,
+        options: &RenderOptions,
+    ) -> Result<Frame> {
+        let start = Instant::now();
+        let plan = FramePlan::new(&mut self.cache, scene, scene.grid(), camera, tf, options)?;
+        let (rgb, mut stats) = scene.volume().accept(SerialPass {
+            plan: &plan,
+            cells: scene.macrocells(),
+            value_range: scene.value_range(),
+            tf,
+            options,
+        });
+        stats.time = start.elapsed();
+        Ok(Frame {
+            width: plan.width,
+            height: plan.height,
+            rgb,
+            stats,
+        })
+    }
+}

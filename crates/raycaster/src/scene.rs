@@ -1,0 +1,115 @@
+//! A [`Scene`]: a volume together with the acceleration data built from it
+//! once, ready to be rendered any number of times.
+//!
+//! The volume may be concretely typed (`Scene<LinearVolume<u8>>`) or known only
+//! at run time (`Scene<AnyVolume>`); either way renderers reach the concrete
+//! type once per frame through [`VolumeSource`], never per sample.
+
+use crate::accel::MacrocellGrid;
+use crate::volume::{AnyVolume, Grid, Volume};
+
+/// Code that runs on a concretely typed volume (a generic closure).
+pub trait VolumeVisitor {
+    /// What the visit returns.
+    type Output;
+    /// Runs on the volume.
+    fn visit<V: Volume>(self, volume: &V) -> Self::Output;
+}
+
+/// Something that can hand a concretely typed [`Volume`] to a visitor: every
+/// `Volume`, and [`AnyVolume`].
+pub trait VolumeSource: Send + Sync {
+    /// Calls `visitor.visit` with the concrete volume.
+    fn accept<T: VolumeVisitor>(&self, visitor: T) -> T::Output;
+    /// Dimensions, spacing and origin.
+    fn source_grid(&self) -> &Grid;
+}
+
+impl<V: Volume> VolumeSource for V {
+    fn accept<T: VolumeVisitor>(&self, visitor: T) -> T::Output {
+        visitor.visit(self)
+    }
+    fn source_grid(&self) -> &Grid {
+        self.grid()
+    }
+}
+
+impl VolumeSource for AnyVolume {
+    fn accept<T: VolumeVisitor>(&self, visitor: T) -> T::Output {
+        crate::dispatch_volume!(self, v => visitor.visit(v))
+    }
+    fn source_grid(&self) -> &Grid {
+        self.grid()
+    }
+}
+
+/// A volume and its macrocell value ranges.
+#[derive(Debug)]
+pub struct Scene<V = AnyVolume> {
+    id: u64,
+    volume: V,
+    macrocells: MacrocellGrid,
+    value_range: (f32, f32),
+}
+
+struct BuildMacrocells(Option<u32>);
+
+impl VolumeVisitor for BuildMacrocells {
+    type Output = MacrocellGrid;
+    fn visit<V: Volume>(self, volume: &V) -> MacrocellGrid {
+        MacrocellGrid::build(
+            volume,
+            self.0.unwrap_or_else(|| volume.preferred_macrocell()),
+        )
+    }
+}
+
+impl<V: VolumeSource> Scene<V> {
+    /// Builds the macrocell grid of `volume` (one pass over the data) with the
+    /// volume's preferred macrocell size (8 voxels, or one brick).
+    pub fn new(volume: V) -> Self {
+        Self::build(volume, None)
+    }
+
+    /// As [`Scene::new`] with an explicit macrocell side in voxels.
+    pub fn with_macrocell(volume: V, cell: u32) -> Self {
+        Self::build(volume, Some(cell))
+    }
+
+    fn build(volume: V, cell: Option<u32>) -> Self {
+        let macrocells = volume.accept(BuildMacrocells(cell));
+        let value_range = macrocells.value_range();
+        static NEXT_ID: std::sync::atomic::AtomicU64 = std::sync::atomic::AtomicU64::new(1);
+        Scene {
+            id: NEXT_ID.fetch_add(1, std::sync::atomic::Ordering::Relaxed),
+            volume,
+            macrocells,
+            value_range,
+        }
+    }
+
+    /// A number unique to this scene in this process (keys renderers' caches).
+    pub fn id(&self) -> u64 {
+        self.id
+    }
+
+    /// The volume.
+    pub fn volume(&self) -> &V {
+        &self.volume
+    }
+
+    /// Dimensions, spacing and origin.
+    pub fn grid(&self) -> &Grid {
+        self.volume.source_grid()
+    }
+
+    /// The macrocell grid.
+    pub fn macrocells(&self) -> &MacrocellGrid {
+        &self.macrocells
+    }
+
+    /// Smallest and largest voxel value.
+    pub fn value_range(&self) -> (f32, f32) {
+        self.value_range
+    }
+}

@@ -1,0 +1,467 @@
+//! Transfer functions (SPEC §4): map a sample value to colour and opacity.
+//!
+//! A [`TransferFunction`] is the user's description (control points, JSON
+//! files, named presets). Renderers never evaluate it per sample: they use a
+//! [`TfLut`], a table built for one sampling step that already holds the
+//! step-corrected opacity `α = 1 − (1 − a)^s` and the colour premultiplied by
+//! it, and that answers "is anything in this value range visible?" in O(1) for
+//! empty-space skipping.
+
+use std::path::Path;
+
+use glam::{Vec3, Vec4};
+use serde::{Deserialize, Serialize};
+
+use crate::error::{Error, Result};
+use crate::sample::SampleType;
+
+/// How RGBA varies between control points.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize, Default)]
+#[serde(rename_all = "lowercase")]
+pub enum Interpolation {
+    /// Linear between neighbouring points, clamped to the end points outside.
+    #[default]
+    Linear,
+    /// The RGBA of the last point whose value is <= v; transparent below the first.
+    Step,
+}
+
+/// One control point.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+pub struct TfPoint {
+    /// Sample value (data units).
+    pub value: f32,
+    /// Colour, each channel in 0..=1.
+    pub color: [f32; 3],
+    /// Opacity per world unit of path length, 0..=1.
+    pub opacity: f32,
+}
+
+/// A transfer function: sorted control points and an interpolation rule.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct TransferFunction {
+    /// How to interpolate between points.
+    #[serde(default)]
+    pub interpolation: Interpolation,
+    /// Control points sorted by value.
+    pub points: Vec<TfPoint>,
+}
+
+/// Names of the built-in presets (SPEC §4).
+pub const PRESET_NAMES: [&str; 6] = [
+    "shapes",
+    "skull",
+    "ramp",
+    "ct-bone",
+    "ct-soft",
+    "mr-default",
+];
+
+fn rgb255(r: u8, g: u8, b: u8) -> [f32; 3] {
+    [r as f32 / 255.0, g as f32 / 255.0, b as f32 / 255.0]
+}
+
+fn pt(value: f32, color: [f32; 3], opacity: f32) -> TfPoint {
+    TfPoint {
+        value,
+        color,
+        opacity,
+    }
+}
+
+impl TransferFunction {
+    /// A validated transfer function.
+    pub fn new(interpolation: Interpolation, points: Vec<TfPoint>) -> Result<Self> {
+        let tf = TransferFunction {
+            interpolation,
+            points,
+        };
+        tf.validate().map_err(|message| Error::TransferFunction {
+            path: Default::default(),
+            message,
+        })?;
+        Ok(tf)
+    }
+
+    fn validate(&self) -> std::result::Result<(), String> {
+        if self.points.is_empty() {
+            return Err("transfer function has no points".into());
+        }
+        for (i, p) in self.points.iter().enumerate() {
+            if !p.value.is_finite() {
+                return Err(format!("point {i}: value {} is not finite", p.value));
+            }
+            if !(0.0..=1.0).contains(&p.opacity) {
+                return Err(format!("point {i}: opacity {} outside 0..1", p.opacity));
+            }
+            if p.color.iter().any(|c| !(0.0..=1.0).contains(c)) {
+                return Err(format!("point {i}: colour {:?} outside 0..1", p.color));
+            }
+            if i > 0 && p.value < self.points[i - 1].value {
+                return Err(format!(
+                    "points are not sorted by value ({} after {})",
+                    p.value,
+                    self.points[i - 1].value
+                ));
+            }
+        }
+        Ok(())
+    }
+
+    /// Reads a TF from a JSON file.
+    pub fn from_json_file(path: &Path) -> Result<Self> {
+        let text = std::fs::read_to_string(path).map_err(|e| Error::io(path, e))?;
+        Self::from_json(&text).map_err(|e| match e {
+            Error::TransferFunction { message, .. } => Error::TransferFunction {
+                path: path.to_path_buf(),
+                message,
+            },
+            other => other,
+        })
+    }
+
+    /// Parses a TF from JSON text.
+    pub fn from_json(text: &str) -> Result<Self> {
+        let tf: TransferFunction =
+            serde_json::from_str(text).map_err(|e| Error::TransferFunction {
+                path: Default::default(),
+                message: format!("invalid transfer function JSON: {e}"),
+            })?;
+        tf.validate().map_err(|message| Error::TransferFunction {
+            path: Default::default(),
+            message,
+        })?;
+        Ok(tf)
+    }
+
+    /// The TF as pretty-printed JSON.
+    pub fn to_json(&self) -> String {
+        serde_json::to_string_pretty(self).unwrap_or_default()
+    }
+
+    /// A named preset for data of `sample_type` (the `ramp` preset spans the
+    /// type's range), or `None` for an unknown name. See [`PRESET_NAMES`].
+    pub fn preset(name: &str, sample_type: SampleType) -> Option<Self> {
+        use Interpolation::*;
+        let (interpolation, points) = match name {
+            "shapes" => (
+                Step,
+                vec![
+                    pt(85.0, rgb255(255, 30, 60), 0.02),
+                    pt(95.0, rgb255(10, 60, 180), 0.3),
+                    pt(100.0, rgb255(90, 210, 20), 0.6),
+                    pt(115.0, [0.0; 3], 0.0),
+                ],
+            ),
+            "skull" => (
+                Step,
+                vec![
+                    pt(40.0, rgb255(227, 218, 201), 1.0),
+                    pt(240.0, [0.0; 3], 0.0),
+                ],
+            ),
+            "ramp" => (
+                Linear,
+                vec![
+                    pt(0.0, [1.0; 3], 0.0),
+                    pt(sample_type.max_value(), [1.0; 3], 1.0),
+                ],
+            ),
+            // Hounsfield units: soft tissue transparent, bone from ~200 HU.
+            "ct-bone" => (
+                Linear,
+                vec![
+                    pt(150.0, rgb255(200, 120, 90), 0.0),
+                    pt(250.0, rgb255(230, 200, 160), 0.3),
+                    pt(700.0, rgb255(245, 235, 215), 0.9),
+                    pt(2000.0, [1.0, 1.0, 0.97], 1.0),
+                ],
+            ),
+            // Skin faint, muscle and organs reddish, bone white.
+            "ct-soft" => (
+                Linear,
+                vec![
+                    pt(-600.0, rgb255(180, 120, 100), 0.0),
+                    pt(-400.0, rgb255(220, 160, 130), 0.02),
+                    pt(-100.0, rgb255(220, 160, 130), 0.0),
+                    pt(20.0, rgb255(190, 60, 50), 0.0),
+                    pt(60.0, rgb255(200, 70, 55), 0.15),
+                    pt(250.0, rgb255(230, 210, 180), 0.4),
+                    pt(1000.0, [1.0, 1.0, 0.95], 0.9),
+                ],
+            ),
+            // MR intensities are unitless; this preset assumes a 0..~1000 scale
+            // is typical after scanner scaling and hides the noise floor.
+            "mr-default" => (
+                Linear,
+                vec![
+                    pt(0.0, [0.0; 3], 0.0),
+                    pt(0.08 * mr_scale(sample_type), rgb255(120, 90, 80), 0.0),
+                    pt(0.25 * mr_scale(sample_type), rgb255(220, 170, 140), 0.15),
+                    pt(0.6 * mr_scale(sample_type), rgb255(250, 235, 220), 0.5),
+                    pt(mr_scale(sample_type), [1.0; 3], 0.8),
+                ],
+            ),
+            _ => return None,
+        };
+        Some(TransferFunction {
+            interpolation,
+            points,
+        })
+    }
+
+    /// Colour and opacity (per world unit) at value `v`, exactly as SPEC §4.
+    pub fn evaluate(&self, v: f32) -> Vec4 {
+        let p = &self.points;
+        let rgba = |q: &TfPoint| Vec4::new(q.color[0], q.color[1], q.color[2], q.opacity);
+        match self.interpolation {
+            Interpolation::Step => match p.iter().rposition(|q| q.value <= v) {
+                Some(i) => rgba(&p[i]),
+                None => Vec4::ZERO,
+            },
+            Interpolation::Linear => {
+                let first = &p[0];
+                let last = &p[p.len() - 1];
+                if v <= first.value {
+                    return rgba(first);
+                }
+                if v >= last.value {
+                    return rgba(last);
+                }
+                let i = p.iter().rposition(|q| q.value <= v).unwrap_or(0);
+                let (a, b) = (&p[i], &p[i + 1]);
+                let w = if b.value > a.value {
+                    (v - a.value) / (b.value - a.value)
+                } else {
+                    1.0
+                };
+                rgba(a).lerp(rgba(b), w)
+            }
+        }
+    }
+
+    /// The smallest and largest point values.
+    pub fn value_span(&self) -> (f32, f32) {
+        (
+            self.points[0].value,
+            self.points[self.points.len() - 1].value,
+        )
+    }
+}
+
+/// The value that `mr-default` treats as bright.
+fn mr_scale(t: SampleType) -> f32 {
+    match t {
+        SampleType::U8 | SampleType::I8 => t.max_value(),
+        SampleType::F32 => 1.0,
+        _ => 1000.0,
+    }
+}
+
+/// A transfer function tabulated for one sampling step.
+///
+/// Entry `e` holds `(α·r, α·g, α·b, α)` with `α = 1 − (1 − a)^step`. The table
+/// covers the span of the TF's points at `scale` entries per value unit (a
+/// power of two, so points at integers or simple fractions fall exactly on
+/// entry boundaries, which makes step TFs exact); one extra entry at each end
+/// holds what the TF gives below the first and above the last point.
+#[derive(Debug, Clone)]
+pub struct TfLut {
+    entries: Vec<Vec4>,
+    /// Prefix counts of entries with α > 0, for [`TfLut::any_visible`].
+    visible_prefix: Vec<u32>,
+    lo: f32,
+    scale: f32,
+    linear: bool,
+    step: f32,
+}
+
+/// Entries per table, roughly; the scale is the largest power of two that
+/// keeps the table this small (16 per unit for u8 data).
+const LUT_TARGET: f32 = 4096.0;
+
+impl TfLut {
+    /// Tabulates `tf` for sampling step `step` (world units).
+    pub fn new(tf: &TransferFunction, step: f32) -> Self {
+        let (lo, hi) = tf.value_span();
+        let span = (hi - lo).max(1e-6);
+        let scale = (LUT_TARGET / span).log2().floor().clamp(-20.0, 20.0).exp2();
+        let n = ((span * scale).ceil() as usize).max(1);
+        let correct = |c: Vec4| {
+            let a = 1.0 - (1.0 - c.w.clamp(0.0, 1.0)).powf(step);
+            Vec4::new(c.x * a, c.y * a, c.z * a, a)
+        };
+        let linear = tf.interpolation == Interpolation::Linear;
+        // entries[0]: below lo; entries[1 + i]: value lo + i/scale; last: above hi.
+        let mut entries = Vec::with_capacity(n + 3);
+        entries.push(correct(if linear { tf.evaluate(lo) } else { Vec4::ZERO }));
+        for i in 0..=n {
+            entries.push(correct(tf.evaluate(lo + i as f32 / scale)));
+        }
+        entries.push(correct(tf.evaluate(hi)));
+        let mut visible_prefix = Vec::with_capacity(entries.len() + 1);
+        let mut count = 0u32;
+        visible_prefix.push(0);
+        for e in &entries {
+            count += (e.w > 0.0) as u32;
+            visible_prefix.push(count);
+        }
+        TfLut {
+            entries,
+            visible_prefix,
+            lo,
+            scale,
+            linear,
+            step,
+        }
+    }
+
+    /// The sampling step this table was made for.
+    pub fn step(&self) -> f32 {
+        self.step
+    }
+
+    /// Position of value `v` in entry units, offset by the "below" entry.
+    #[inline(always)]
+    fn position(&self, v: f32) -> f32 {
+        ((v - self.lo) * self.scale + 1.0).clamp(0.0, (self.entries.len() - 2) as f32)
+    }
+
+    /// Premultiplied, step-corrected `(α·r, α·g, α·b, α)` at value `v`.
+    #[inline(always)]
+    pub fn lookup(&self, v: f32) -> Vec4 {
+        let x = self.position(v);
+        let i = x as usize;
+        if self.linear {
+            let f = x - i as f32;
+            let a = self.entries[i];
+            let b = self.entries[i + 1];
+            a + (b - a) * f
+        } else {
+            self.entries[i]
+        }
+    }
+
+    /// True when some value in `[vmin, vmax]` has a non-zero opacity under
+    /// this table: the test behind empty-space skipping, consistent with
+    /// [`TfLut::lookup`] by construction.
+    #[inline]
+    pub fn any_visible(&self, vmin: f32, vmax: f32) -> bool {
+        let a = self.position(vmin) as usize;
+        let b = self.position(vmax) as usize + self.linear as usize;
+        let b = b.min(self.entries.len() - 1);
+        self.visible_prefix[b + 1] > self.visible_prefix[a]
+    }
+
+    /// Colour (not premultiplied) and step-corrected opacity at `v`.
+    pub fn color(&self, v: f32) -> (Vec3, f32) {
+        let e = self.lookup(v);
+        if e.w > 0.0 {
+            (e.truncate() / e.w, e.w)
+        } else {
+            (Vec3::ZERO, 0.0)
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn presets_exist_and_validate() {
+        for name in PRESET_NAMES {
+            let tf = TransferFunction::preset(name, SampleType::U8).unwrap();
+            tf.validate().unwrap();
+        }
+        assert!(TransferFunction::preset("nope", SampleType::U8).is_none());
+    }
+
+    #[test]
+    fn step_evaluation_follows_the_spec() {
+        let tf = TransferFunction::preset("shapes", SampleType::U8).unwrap();
+        assert_eq!(tf.evaluate(84.99).w, 0.0);
+        assert_eq!(tf.evaluate(85.0).w, 0.02);
+        assert_eq!(tf.evaluate(99.9).w, 0.3);
+        assert_eq!(tf.evaluate(100.0).w, 0.6);
+        assert_eq!(tf.evaluate(200.0).w, 0.0);
+    }
+
+    #[test]
+    fn linear_evaluation_interpolates_and_clamps() {
+        let tf = TransferFunction::preset("ramp", SampleType::U8).unwrap();
+        assert!((tf.evaluate(127.5).w - 0.5).abs() < 1e-6);
+        assert_eq!(tf.evaluate(-5.0).w, 0.0);
+        assert_eq!(tf.evaluate(300.0).w, 1.0);
+    }
+
+    #[test]
+    fn lut_matches_exact_evaluation_with_opacity_correction() {
+        let mut rng = fastrand::Rng::with_seed(3);
+        for name in ["shapes", "skull", "ramp"] {
+            let tf = TransferFunction::preset(name, SampleType::U8).unwrap();
+            for step in [0.1f32, 0.5, 1.0, 2.0] {
+                let lut = TfLut::new(&tf, step);
+                for _ in 0..2000 {
+                    let v = rng.f32() * 300.0 - 20.0;
+                    let e = tf.evaluate(v);
+                    let a = 1.0 - (1.0 - e.w).powf(step);
+                    let got = lut.lookup(v);
+                    assert!(
+                        (got.w - a).abs() < 2e-3,
+                        "{name} step {step} v {v}: {} vs {a}",
+                        got.w
+                    );
+                    assert!((got.x - e.x * a).abs() < 2e-3);
+                }
+            }
+        }
+    }
+
+    #[test]
+    fn visibility_agrees_with_lookup() {
+        let mut rng = fastrand::Rng::with_seed(5);
+        for name in ["shapes", "skull", "ramp"] {
+            let tf = TransferFunction::preset(name, SampleType::U8).unwrap();
+            let lut = TfLut::new(&tf, 0.5);
+            for _ in 0..3000 {
+                let a = rng.f32() * 280.0 - 10.0;
+                let b = a + rng.f32() * 20.0;
+                let any = (0..=400).any(|k| lut.lookup(a + (b - a) * k as f32 / 400.0).w > 0.0);
+                if any {
+                    assert!(
+                        lut.any_visible(a, b),
+                        "{name} [{a}, {b}] has visible values"
+                    );
+                }
+            }
+            // Values wholly below the shapes TF's first point are invisible.
+        }
+        let shapes = TfLut::new(
+            &TransferFunction::preset("shapes", SampleType::U8).unwrap(),
+            0.2,
+        );
+        assert!(!shapes.any_visible(0.0, 84.9));
+        assert!(shapes.any_visible(0.0, 85.0));
+        assert!(!shapes.any_visible(115.0, 255.0));
+    }
+
+    #[test]
+    fn json_round_trip_and_errors() {
+        let tf = TransferFunction::preset("shapes", SampleType::U8).unwrap();
+        assert_eq!(TransferFunction::from_json(&tf.to_json()).unwrap(), tf);
+        let spec = r#"{ "interpolation": "linear",
+          "points": [ { "value": 40, "color": [0.9, 0.85, 0.8], "opacity": 0.0 },
+                      { "value": 80, "color": [0.9, 0.85, 0.8], "opacity": 0.8 } ] }"#;
+        let tf = TransferFunction::from_json(spec).unwrap();
+        assert!((tf.evaluate(60.0).w - 0.4).abs() < 1e-6);
+        for bad in [
+            "{",
+            r#"{"points": []}"#,
+            r#"{"points": [{"value": 5, "color": [1,1,1], "opacity": 2}]}"#,
+            r#"{"points": [{"value": 5, "color": [1,1,1], "opacity": 1}, {"value": 1, "color": [1,1,1], "opacity": 1}]}"#,
+        ] {
+            assert!(TransferFunction::from_json(bad).is_err(), "{bad}");
+        }
+    }
+}
