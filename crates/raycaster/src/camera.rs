@@ -77,6 +77,24 @@ impl PixelRect {
         (self.x1.saturating_sub(self.x0)) as u64 * (self.y1.saturating_sub(self.y0)) as u64
     }
 
+    /// The rectangle cut into `side`×`side` tiles (smaller at the right and
+    /// bottom edges), row by row.
+    pub fn tiles(&self, side: u32) -> impl Iterator<Item = PixelRect> + '_ {
+        let side = side.max(1);
+        (self.y0..self.y1)
+            .step_by(side as usize)
+            .flat_map(move |y| {
+                (self.x0..self.x1)
+                    .step_by(side as usize)
+                    .map(move |x| PixelRect {
+                        x0: x,
+                        y0: y,
+                        x1: (x + side).min(self.x1),
+                        y1: (y + side).min(self.y1),
+                    })
+            })
+    }
+
     /// True when `(x, y)` is inside.
     pub fn contains(&self, x: u32, y: u32) -> bool {
         x >= self.x0 && x < self.x1 && y >= self.y0 && y < self.y1

@@ -263,13 +263,19 @@ fn mr_scale(t: SampleType) -> f32 {
 /// Entry `e` holds `(α·r, α·g, α·b, α)` with `α = 1 − (1 − a)^step`. The table
 /// covers the span of the TF's points at `scale` entries per value unit (a
 /// power of two, so points at integers or simple fractions fall exactly on
-/// entry boundaries, which makes step TFs exact); one extra entry at each end
-/// holds what the TF gives below the first and above the last point.
+/// entry boundaries); one extra entry at each end holds what the TF gives
+/// below the first and above the last point. A table interval that has a
+/// control point strictly inside it (a step or a kink the table cannot
+/// represent) is flagged, and values falling there are evaluated exactly, so
+/// lookups follow SPEC §4 whatever the points.
 #[derive(Debug, Clone)]
 pub struct TfLut {
     entries: Vec<Vec4>,
-    /// Prefix counts of entries with α > 0, for [`TfLut::any_visible`].
+    /// Per interval: evaluate exactly instead of from the table.
+    exact: Vec<bool>,
+    /// Prefix counts of intervals that hold a visible value, for [`TfLut::any_visible`].
     visible_prefix: Vec<u32>,
+    tf: TransferFunction,
     lo: f32,
     scale: f32,
     linear: bool,
@@ -287,28 +293,51 @@ impl TfLut {
         let span = (hi - lo).max(1e-6);
         let scale = (LUT_TARGET / span).log2().floor().clamp(-20.0, 20.0).exp2();
         let n = ((span * scale).ceil() as usize).max(1);
-        let correct = |c: Vec4| {
-            let a = 1.0 - (1.0 - c.w.clamp(0.0, 1.0)).powf(step);
-            Vec4::new(c.x * a, c.y * a, c.z * a, a)
-        };
         let linear = tf.interpolation == Interpolation::Linear;
-        // entries[0]: below lo; entries[1 + i]: value lo + i/scale; last: above hi.
+        let correct = |c: Vec4| correct(c, step);
+        // Node j (j >= 1) sits at value lo + (j − 1)/scale; node 0 stands for
+        // "below lo" and the last node for "above hi".
+        let node = |j: usize| lo + (j as f32 - 1.0) / scale;
         let mut entries = Vec::with_capacity(n + 3);
         entries.push(correct(if linear { tf.evaluate(lo) } else { Vec4::ZERO }));
         for i in 0..=n {
-            entries.push(correct(tf.evaluate(lo + i as f32 / scale)));
+            entries.push(correct(tf.evaluate(node(i + 1))));
         }
         entries.push(correct(tf.evaluate(hi)));
-        let mut visible_prefix = Vec::with_capacity(entries.len() + 1);
+        // Interval j covers [node j, node j+1) (step) or [node j, node j+1]
+        // (linear, interpolated between the two nodes). A linear TF may jump
+        // at a point (two points with one value), so a point on an
+        // interval's right end also makes it exact.
+        let intervals = entries.len() - 1;
+        let mut exact = vec![false; intervals];
+        let mut visible = vec![false; intervals];
+        for j in 0..intervals {
+            let (a, b) = (node(j), node(j + 1));
+            let inner: Vec<&TfPoint> = if j == 0 || j + 1 >= intervals {
+                Vec::new()
+            } else {
+                tf.points
+                    .iter()
+                    .filter(|p| p.value > a && (p.value < b || (linear && p.value <= b)))
+                    .collect()
+            };
+            exact[j] = !inner.is_empty();
+            visible[j] = entries[j].w > 0.0
+                || (linear && entries[j + 1].w > 0.0)
+                || inner.iter().any(|p| p.opacity > 0.0);
+        }
+        let mut visible_prefix = Vec::with_capacity(intervals + 1);
         let mut count = 0u32;
         visible_prefix.push(0);
-        for e in &entries {
-            count += (e.w > 0.0) as u32;
+        for &v in &visible {
+            count += v as u32;
             visible_prefix.push(count);
         }
         TfLut {
             entries,
+            exact,
             visible_prefix,
+            tf: tf.clone(),
             lo,
             scale,
             linear,
@@ -321,7 +350,7 @@ impl TfLut {
         self.step
     }
 
-    /// Position of value `v` in entry units, offset by the "below" entry.
+    /// Position of value `v` in node units (node 0 = below the span).
     #[inline(always)]
     fn position(&self, v: f32) -> f32 {
         ((v - self.lo) * self.scale + 1.0).clamp(0.0, (self.entries.len() - 2) as f32)
@@ -332,6 +361,9 @@ impl TfLut {
     pub fn lookup(&self, v: f32) -> Vec4 {
         let x = self.position(v);
         let i = x as usize;
+        if self.exact[i] {
+            return self.exact_lookup(v);
+        }
         if self.linear {
             let f = x - i as f32;
             let a = self.entries[i];
@@ -342,14 +374,18 @@ impl TfLut {
         }
     }
 
+    #[cold]
+    fn exact_lookup(&self, v: f32) -> Vec4 {
+        correct(self.tf.evaluate(v), self.step)
+    }
+
     /// True when some value in `[vmin, vmax]` has a non-zero opacity under
     /// this table: the test behind empty-space skipping, consistent with
     /// [`TfLut::lookup`] by construction.
     #[inline]
     pub fn any_visible(&self, vmin: f32, vmax: f32) -> bool {
         let a = self.position(vmin) as usize;
-        let b = self.position(vmax) as usize + self.linear as usize;
-        let b = b.min(self.entries.len() - 1);
+        let b = self.position(vmax) as usize;
         self.visible_prefix[b + 1] > self.visible_prefix[a]
     }
 
@@ -362,6 +398,12 @@ impl TfLut {
             (Vec3::ZERO, 0.0)
         }
     }
+}
+
+/// Opacity correction for step `step` and premultiplication.
+fn correct(c: Vec4, step: f32) -> Vec4 {
+    let a = 1.0 - (1.0 - c.w.clamp(0.0, 1.0)).powf(step);
+    Vec4::new(c.x * a, c.y * a, c.z * a, a)
 }
 
 #[cfg(test)]
@@ -444,6 +486,53 @@ mod tests {
         assert!(!shapes.any_visible(0.0, 84.9));
         assert!(shapes.any_visible(0.0, 85.0));
         assert!(!shapes.any_visible(115.0, 255.0));
+    }
+
+    #[test]
+    fn wide_and_odd_step_points_are_exact() {
+        let p = |v: f32, a: f32| TfPoint {
+            value: v,
+            color: [v / 70000.0, 0.5, 0.5],
+            opacity: a,
+        };
+        for (interp, pts) in [
+            (
+                Interpolation::Step,
+                vec![p(1000.0, 0.2), p(1010.0, 0.9), p(60000.0, 0.0)],
+            ),
+            (
+                Interpolation::Step,
+                vec![p(10.3, 0.5), p(10.31, 0.0), p(20.0, 1.0)],
+            ),
+            (
+                Interpolation::Linear,
+                vec![p(0.0, 0.0), p(5000.5, 1.0), p(5001.0, 0.0), p(65535.0, 0.3)],
+            ),
+        ] {
+            let tf = TransferFunction::new(interp, pts).unwrap();
+            let lut = TfLut::new(&tf, 0.5);
+            let mut rng = fastrand::Rng::with_seed(9);
+            let (lo, hi) = tf.value_span();
+            let mut probes: Vec<f32> = tf
+                .points
+                .iter()
+                .flat_map(|p| [p.value, p.value - 0.01, p.value + 0.01])
+                .collect();
+            probes.extend((0..5000).map(|_| lo - 10.0 + rng.f32() * (hi - lo + 20.0)));
+            for v in probes {
+                let e = tf.evaluate(v);
+                let a = 1.0 - (1.0 - e.w).powf(0.5);
+                let got = lut.lookup(v);
+                assert!(
+                    (got.w - a).abs() < 2e-3,
+                    "{interp:?} v {v}: {} vs {a}",
+                    got.w
+                );
+                if got.w > 0.0 {
+                    assert!(lut.any_visible(v, v), "{v} visible but not in any_visible");
+                }
+            }
+        }
     }
 
     #[test]

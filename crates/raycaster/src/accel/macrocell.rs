@@ -1,10 +1,7 @@
 //! The min/max grid over macrocells.
 
-use glam::{UVec3, Vec3};
-use rayon::prelude::*;
-
-use crate::sample::Sample as _;
 use crate::volume::Volume;
+use glam::{UVec3, Vec3};
 
 /// Value range per macrocell.
 ///
@@ -19,34 +16,28 @@ pub struct MacrocellGrid {
     pub count: UVec3,
     /// `(min, max)` per cell, x slowest, z fastest.
     pub ranges: Vec<(f32, f32)>,
+    /// Per cell: true when the cell and its 26 neighbours hold one single
+    /// value. Inside such a cell every sample has that value and every
+    /// central-difference gradient is zero, so a ray can composite a run of
+    /// samples there in closed form.
+    pub uniform: Vec<bool>,
 }
 
 impl MacrocellGrid {
-    /// Builds the grid for `volume` with cells of `cell` voxels a side, using
-    /// all the threads of the current rayon pool.
+    /// Builds the grid for `volume` with cells of `cell` voxels a side (see
+    /// [`Volume::cell_value_ranges`]).
     pub fn build<V: Volume>(volume: &V, cell: u32) -> Self {
         let cell = cell.max(1);
         let dims = volume.grid().dims;
         let n = |d: u32| if d <= 1 { 1 } else { (d - 1).div_ceil(cell) };
         let count = UVec3::new(n(dims.x), n(dims.y), n(dims.z));
-        let per_slab = (count.y * count.z) as usize;
-        let mut ranges = vec![(0.0f32, 0.0f32); count.x as usize * per_slab];
-        ranges
-            .par_chunks_mut(per_slab)
-            .enumerate()
-            .for_each(|(cx, slab)| {
-                for cy in 0..count.y {
-                    for cz in 0..count.z {
-                        let lo = UVec3::new(cx as u32, cy, cz) * cell;
-                        let (a, b) = volume.value_range(lo, lo + UVec3::splat(cell));
-                        slab[(cy * count.z + cz) as usize] = (a.to_f32(), b.to_f32());
-                    }
-                }
-            });
+        let ranges = volume.cell_value_ranges(cell, count);
+        let uniform = uniform_cells(&ranges, count);
         MacrocellGrid {
             cell,
             count,
             ranges,
+            uniform,
         }
     }
 
@@ -70,5 +61,76 @@ impl MacrocellGrid {
             .fold((f32::INFINITY, f32::NEG_INFINITY), |(a, b), &(lo, hi)| {
                 (a.min(lo), b.max(hi))
             })
+    }
+}
+
+/// Marks the cells whose 3×3×3 neighbourhood (clamped to the grid) holds one
+/// value, in three separable passes (z, then y, then x).
+fn uniform_cells(ranges: &[(f32, f32)], n: UVec3) -> Vec<bool> {
+    let (nx, ny, nz) = (n.x as usize, n.y as usize, n.z as usize);
+    let value = |i: usize| ranges[i].0;
+    let mut cur: Vec<bool> = ranges.iter().map(|&(lo, hi)| lo == hi).collect();
+    for stride_len in [(1usize, nz), (nz, ny), (ny * nz, nx)] {
+        let (stride, len) = stride_len;
+        let prev = cur.clone();
+        for (i, u) in cur.iter_mut().enumerate() {
+            if !*u {
+                continue;
+            }
+            let pos = (i / stride) % len;
+            let same = |j: usize| prev[j] && value(j) == value(i);
+            *u = (pos == 0 || same(i - stride)) && (pos + 1 == len || same(i + stride));
+        }
+    }
+    cur
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn uniform_cells_match_brute_force() {
+        let mut rng = fastrand::Rng::with_seed(4);
+        for _ in 0..30 {
+            let n = UVec3::new(rng.u32(1..7), rng.u32(1..7), rng.u32(1..7));
+            let len = (n.x * n.y * n.z) as usize;
+            let ranges: Vec<(f32, f32)> = (0..len)
+                .map(|_| match rng.u32(0..10) {
+                    0 => (0.0, 1.0),
+                    1 => (2.0, 2.0),
+                    _ => (0.0, 0.0),
+                })
+                .collect();
+            let got = uniform_cells(&ranges, n);
+            let at = |x: i32, y: i32, z: i32| ((x * n.y as i32 + y) * n.z as i32 + z) as usize;
+            for x in 0..n.x as i32 {
+                for y in 0..n.y as i32 {
+                    for z in 0..n.z as i32 {
+                        let me = ranges[at(x, y, z)];
+                        let mut want = me.0 == me.1;
+                        for dx in -1..=1 {
+                            for dy in -1..=1 {
+                                for dz in -1..=1 {
+                                    let (qx, qy, qz) = (x + dx, y + dy, z + dz);
+                                    if qx < 0
+                                        || qy < 0
+                                        || qz < 0
+                                        || qx >= n.x as i32
+                                        || qy >= n.y as i32
+                                        || qz >= n.z as i32
+                                    {
+                                        continue;
+                                    }
+                                    let q = ranges[at(qx, qy, qz)];
+                                    want &= q.0 == q.1 && q.0 == me.0;
+                                }
+                            }
+                        }
+                        assert_eq!(got[at(x, y, z)], want, "cell {x},{y},{z} of {n}");
+                    }
+                }
+            }
+        }
     }
 }

@@ -13,4 +13,4 @@ mod macrocell;
 mod skip;
 
 pub use macrocell::MacrocellGrid;
-pub use skip::SkipGrid;
+pub use skip::{CellClass, SkipGrid};

@@ -5,6 +5,21 @@ use glam::{UVec3, Vec3};
 use super::MacrocellGrid;
 use crate::geometry::Aabb;
 
+/// The answer of [`SkipGrid::classify`].
+#[derive(Debug, Clone, Copy)]
+pub enum CellClass {
+    /// Nothing here contributes; the box around the point (voxel space) in
+    /// which no cell does.
+    Empty(Aabb),
+    /// The cell may contribute.
+    Occupied {
+        /// The cell's box (voxel space).
+        bounds: Aabb,
+        /// Its index in the macrocell grid.
+        index: usize,
+    },
+}
+
 /// For each macrocell: 0 when it may contribute to the image, otherwise the
 /// Chebyshev distance (in cells, capped at 255) to the nearest cell that may.
 #[derive(Debug, Clone)]
@@ -58,6 +73,27 @@ impl SkipGrid {
         (c.x as usize * self.count.y as usize + c.y as usize) * self.count.z as usize + c.z as usize
     }
 
+    /// What the cell holding voxel-space point `p` is: empty (with the empty
+    /// box around it) or occupied (with its own box and its index in the
+    /// macrocell grid).
+    #[inline(always)]
+    pub fn classify(&self, p: Vec3) -> CellClass {
+        let c = (p.max(Vec3::ZERO) * self.inv_cell)
+            .as_uvec3()
+            .min(self.count - UVec3::ONE);
+        let index = self.index(c);
+        let d = self.distance[index];
+        let r = d.saturating_sub(1) as f32;
+        let lo = (c.as_vec3() - Vec3::splat(r)) * self.cell;
+        let hi = (c.as_vec3() + Vec3::splat(r + 1.0)) * self.cell;
+        let bounds = Aabb::new(lo, hi);
+        if d == 0 {
+            CellClass::Occupied { bounds, index }
+        } else {
+            CellClass::Empty(bounds)
+        }
+    }
+
     /// For voxel-space point `p`: `None` when its cell may contribute;
     /// otherwise the voxel-space box, around that cell, in which no cell does.
     #[inline(always)]
@@ -94,40 +130,51 @@ impl SkipGrid {
 /// others must hold `u8::MAX` on entry. Two raster passes with the 26-neighbour
 /// chamfer mask of unit weights, which is exact for the chessboard metric.
 fn chessboard_distance(d: &mut [u8], n: UVec3) {
-    let (nx, ny, nz) = (n.x as i64, n.y as i64, n.z as i64);
-    let idx = |x: i64, y: i64, z: i64| ((x * ny + y) * nz + z) as usize;
-    let mut pass = |forward: bool| {
-        let s: i64 = if forward { 1 } else { -1 };
-        let range = |len: i64| -> Box<dyn Iterator<Item = i64>> {
-            if forward {
-                Box::new(0..len)
-            } else {
-                Box::new((0..len).rev())
-            }
-        };
-        for x in range(nx) {
-            for y in range(ny) {
-                for z in range(nz) {
-                    let here = idx(x, y, z);
-                    if d[here] == 0 {
-                        continue;
-                    }
-                    let mut best = d[here];
-                    // The 13 neighbours already visited in this raster order.
-                    for (dx, dy, dz) in HALF_MASK {
-                        let (qx, qy, qz) = (x - s * dx, y - s * dy, z - s * dz);
-                        if qx < 0 || qy < 0 || qz < 0 || qx >= nx || qy >= ny || qz >= nz {
-                            continue;
-                        }
-                        best = best.min(d[idx(qx, qy, qz)].saturating_add(1));
-                    }
-                    d[here] = best;
+    // Work on a copy padded by one never-source cell per face, so the
+    // neighbour loop needs no bounds tests.
+    let (nx, ny, nz) = (n.x as usize, n.y as usize, n.z as usize);
+    let (py, pz) = (ny + 2, nz + 2);
+    let mut pad = vec![u8::MAX; (nx + 2) * py * pz];
+    let at = |x: usize, y: usize, z: usize| (x * py + y) * pz + z;
+    for x in 0..nx {
+        for y in 0..ny {
+            let src = (x * ny + y) * nz;
+            let dst = at(x + 1, y + 1, 1);
+            pad[dst..dst + nz].copy_from_slice(&d[src..src + nz]);
+        }
+    }
+    let offsets: [usize; 13] =
+        HALF_MASK.map(|(dx, dy, dz)| ((dx * py as i64 + dy) * pz as i64 + dz) as usize);
+    // Forward pass: neighbours at lower indices; backward: at higher ones.
+    for x in 1..=nx {
+        for y in 1..=ny {
+            let row = at(x, y, 0);
+            for i in row + 1..=row + nz {
+                if pad[i] != 0 {
+                    let m = offsets.iter().map(|&o| pad[i - o]).min().unwrap_or(u8::MAX);
+                    pad[i] = pad[i].min(m.saturating_add(1));
                 }
             }
         }
-    };
-    pass(true);
-    pass(false);
+    }
+    for x in (1..=nx).rev() {
+        for y in (1..=ny).rev() {
+            let row = at(x, y, 0);
+            for i in (row + 1..=row + nz).rev() {
+                if pad[i] != 0 {
+                    let m = offsets.iter().map(|&o| pad[i + o]).min().unwrap_or(u8::MAX);
+                    pad[i] = pad[i].min(m.saturating_add(1));
+                }
+            }
+        }
+    }
+    for x in 0..nx {
+        for y in 0..ny {
+            let dst = (x * ny + y) * nz;
+            let src = at(x + 1, y + 1, 1);
+            d[dst..dst + nz].copy_from_slice(&pad[src..src + nz]);
+        }
+    }
 }
 
 /// Offsets of the neighbours that precede a cell in x-major, z-fastest order.

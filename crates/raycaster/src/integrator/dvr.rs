@@ -3,6 +3,7 @@
 use glam::Vec3;
 
 use super::{FrameContext, RaySegment};
+use crate::accel::CellClass;
 use crate::volume::Volume;
 
 /// Accumulated colour (premultiplied) and opacity of a ray.
@@ -33,20 +34,26 @@ impl DvrState {
         while k < k1 && !self.terminated {
             // Decide how far we may march sample by sample.
             let run_end = if ctx.ess {
-                let p = seg.pos(k);
-                match ctx.skip.occupied_cell_box(p) {
-                    Some(cell) => {
-                        let t_exit = cell.exit(seg.origin, seg.inv_dir);
-                        seg.first_index_at_or_after(t_exit).max(k + 1).min(k1)
-                    }
-                    None => {
-                        // Empty: jump past the empty box around this cell.
-                        if let Some(b) = ctx.skip.empty_box(p) {
-                            let t_exit = b.exit(seg.origin, seg.inv_dir);
-                            k = seg.first_index_at_or_after(t_exit).max(k + 1);
-                        } else {
-                            k += 1;
+                match ctx.skip.classify(seg.pos(k)) {
+                    CellClass::Occupied { bounds, index } => {
+                        let t_exit = bounds.exit(seg.origin, seg.inv_dir);
+                        let end = seg.first_index_at_or_after(t_exit).max(k + 1).min(k1);
+                        if ctx.macrocells.uniform[index] {
+                            taken += self.composite_uniform(
+                                ctx,
+                                ctx.macrocells.ranges[index].0,
+                                end - k,
+                                threshold,
+                            );
+                            k = end;
+                            continue;
                         }
+                        end
+                    }
+                    CellClass::Empty(bounds) => {
+                        // Jump past the empty box around this cell.
+                        let t_exit = bounds.exit(seg.origin, seg.inv_dir);
+                        k = seg.first_index_at_or_after(t_exit).max(k + 1);
                         continue;
                     }
                 }
@@ -78,5 +85,44 @@ impl DvrState {
             }
         }
         taken
+    }
+
+    /// Composites `n` samples of the constant value `v` in closed form: with
+    /// transmittance `T = 1 − A` and `β = 1 − α`, after `n` samples
+    /// `T' = T·βⁿ` and `C' = C + c·(T − T')/α` (c premultiplied). With ERT the
+    /// run stops at the first sample whose `A` reaches the threshold, as the
+    /// sample-by-sample loop would. Returns the samples composited.
+    #[inline]
+    fn composite_uniform<V: Volume>(
+        &mut self,
+        ctx: &FrameContext<'_, V>,
+        v: f32,
+        n: u32,
+        threshold: f32,
+    ) -> u64 {
+        let e = ctx.lut.lookup(v);
+        if e.w <= 0.0 || n == 0 {
+            return n as u64;
+        }
+        let t0 = 1.0 - self.alpha;
+        let beta = 1.0 - e.w;
+        let mut count = n;
+        if threshold <= 1.0 {
+            // Smallest i with 1 − T·βⁱ >= threshold.
+            let stop = if beta <= 0.0 {
+                1
+            } else {
+                let i = ((1.0 - threshold) / t0).ln() / beta.ln();
+                (i.ceil().max(1.0) as u32).max(1)
+            };
+            count = count.min(stop);
+        }
+        let t1 = t0 * beta.powi(count as i32);
+        self.color += e.truncate() * ((t0 - t1) / e.w);
+        self.alpha = 1.0 - t1;
+        if self.alpha >= threshold || count < n {
+            self.terminated = true;
+        }
+        count as u64
     }
 }

@@ -39,11 +39,17 @@ impl IsoState {
                     let next = seg
                         .first_index_at_or_after(b.exit(seg.origin, seg.inv_dir))
                         .max(k + 1);
+                    // Close the pair (k − 1, k), then open the pair
+                    // (next − 1, next); the samples between lie in the empty
+                    // box, on one side of the iso value.
+                    let mut visited = false;
                     if self.prev.is_some() {
                         taken += self.visit(ctx, seg, k);
+                        visited = true;
                     }
-                    if next - 1 > k && next - 1 < k1 {
-                        taken += self.visit(ctx, seg, next - 1);
+                    let last = next - 1;
+                    if last < k1 && (last > k || !visited) {
+                        taken += self.visit(ctx, seg, last);
                     }
                     k = next;
                     continue;

@@ -78,6 +78,8 @@ pub struct RaySegment {
     pub t_in: f32,
     /// Sampling step (world units).
     pub step: f32,
+    /// `1 / step`.
+    pub inv_step: f32,
     /// Number of samples on the whole ray: indices `0..count`.
     pub count: u32,
 }
@@ -104,6 +106,7 @@ impl RaySegment {
             world_dir: ray.dir,
             t_in,
             step,
+            inv_step: 1.0 / step,
             count: last + 1,
         })
     }
@@ -120,10 +123,18 @@ impl RaySegment {
         self.origin + self.dir * self.t(k)
     }
 
-    /// The first sample index at or after parameter `t` (saturating).
+    /// A sample index at or just before the first sample at or after
+    /// parameter `t` (saturating). Callers use it as the end of a run of
+    /// samples inside a box whose exit is `t`, or as where to resume after
+    /// skipping such a box: it may err by one sample early (harmless: that
+    /// sample is taken) but never late (which would skip a sample outside an
+    /// empty box).
     #[inline(always)]
     pub fn first_index_at_or_after(&self, t: f32) -> u32 {
-        ((t - self.t_in) / self.step).ceil().max(0.0) as u32
+        let x = (t - self.t_in) * self.inv_step - 1e-3;
+        // ceil without a libm call; `as` saturates negatives and NaN to 0.
+        let k = x as u32;
+        k + ((k as f32) < x) as u32
     }
 }
 

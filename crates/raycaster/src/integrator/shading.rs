@@ -12,8 +12,8 @@ pub struct Phong {
     pub kd: f32,
     /// Specular weight.
     pub ks: f32,
-    /// Specular exponent.
-    pub shininess: f32,
+    /// Specular exponent (an integer, so the power is a few multiplications).
+    pub shininess: i32,
     /// Shading is applied only where the gradient magnitude (value units per
     /// world unit) exceeds this; elsewhere the colour is used as it is.
     pub gradient_threshold: f32,
@@ -25,15 +25,15 @@ impl Default for Phong {
             ka: 0.3,
             kd: 0.7,
             ks: 0.25,
-            shininess: 20.0,
+            shininess: 20,
             gradient_threshold: 1e-3,
         }
     }
 }
 
 impl Phong {
-    /// Defaults with the gradient threshold scaled to the data's value range
-    /// (1% of it per world unit... per voxel of unit spacing).
+    /// Defaults with the gradient threshold at 1% of the data's value range
+    /// per world unit.
     pub fn for_value_range(range: f32) -> Self {
         Phong {
             gradient_threshold: (range * 0.01).max(1e-6),
@@ -56,7 +56,7 @@ impl Phong {
         // R = 2(N·L)N − L, so R·V = 2(N·L)² − 1 for a headlight.
         let rdotv = (2.0 * ndotl * ndotl - 1.0).max(0.0);
         let spec = if self.ks > 0.0 {
-            self.ks * rdotv.powf(self.shininess)
+            self.ks * rdotv.powi(self.shininess)
         } else {
             0.0
         };

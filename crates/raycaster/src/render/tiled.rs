@@ -114,22 +114,7 @@ impl Renderer for TiledRenderer {
     ) -> Result<Frame> {
         let start = Instant::now();
         let plan = FramePlan::new(&mut self.cache, scene, scene.grid(), camera, tf, options)?;
-        let r = plan.rect;
-        let mut tiles = Vec::new();
-        let mut y = r.y0;
-        while y < r.y1 {
-            let mut x = r.x0;
-            while x < r.x1 {
-                tiles.push(PixelRect {
-                    x0: x,
-                    y0: y,
-                    x1: (x + self.tile).min(r.x1),
-                    y1: (y + self.tile).min(r.y1),
-                });
-                x += self.tile;
-            }
-            y += self.tile;
-        }
+        let tiles: Vec<PixelRect> = plan.rect.tiles(self.tile).collect();
         let pass = TiledPass {
             plan: &plan,
             cells: scene.macrocells(),

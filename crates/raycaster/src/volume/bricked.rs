@@ -3,7 +3,10 @@
 
 use glam::{UVec3, Vec3};
 
-use super::{Grid, Layout, Volume, split_coord, trilinear};
+use super::{
+    Grid, Layout, Volume, clamped_gradient, interior_gradient, split_coord, stencil_inside,
+    trilinear,
+};
 use crate::error::{Error, Result};
 use crate::sample::Sample;
 use crate::storage::{Storage, StorageKind};
@@ -104,6 +107,7 @@ pub struct BrickedVolume<S: Sample> {
     stride: [usize; 3],
     max_coord: Vec3,
     last: UVec3,
+    inv_two_spacing: Vec3,
 }
 
 impl<S: Sample> BrickedVolume<S> {
@@ -146,6 +150,7 @@ impl<S: Sample> BrickedVolume<S> {
         Ok(BrickedVolume {
             stride: [step(d.x, b * b), step(d.y, b), step(d.z, 1)],
             max_coord: grid.max_coord(),
+            inv_two_spacing: 0.5 / grid.spacing,
             last: grid.last_cell(),
             offset,
             bricks,
@@ -175,6 +180,22 @@ impl<S: Sample> BrickedVolume<S> {
     /// The samples in file order (bricks one after another).
     pub fn samples(&self) -> &[S] {
         self.data.as_slice()
+    }
+
+    /// Base indices of the cells at `c ± 1` along x, y, z (see [`interior_gradient`]).
+    #[inline(always)]
+    fn stencil_bases(&self, c: UVec3) -> [usize; 6] {
+        let o = &self.offset;
+        let (x, y, z) = (c.x as usize, c.y as usize, c.z as usize);
+        let (ox, oy, oz) = (o[0][x], o[1][y], o[2][z]);
+        [
+            o[0][x + 1] + oy + oz,
+            o[0][x - 1] + oy + oz,
+            ox + o[1][y + 1] + oz,
+            ox + o[1][y - 1] + oz,
+            ox + oy + o[2][z + 1],
+            ox + oy + o[2][z - 1],
+        ]
     }
 
     #[inline(always)]
@@ -216,6 +237,25 @@ impl<S: Sample> Volume for BrickedVolume<S> {
             base,
             self.stride,
             Vec3::new(fx, fy, fz),
+        )
+    }
+
+    #[inline(always)]
+    fn gradient(&self, p: Vec3) -> Vec3 {
+        let (x, fx) = split_coord(p.x, self.max_coord.x, self.last.x);
+        let (y, fy) = split_coord(p.y, self.max_coord.y, self.last.y);
+        let (z, fz) = split_coord(p.z, self.max_coord.z, self.last.z);
+        let c = UVec3::new(x, y, z);
+        if !stencil_inside(c, self.grid.dims) {
+            return clamped_gradient(self, p);
+        }
+        let bases = self.stencil_bases(c);
+        interior_gradient(
+            self.data.as_slice(),
+            bases,
+            self.stride,
+            Vec3::new(fx, fy, fz),
+            self.inv_two_spacing,
         )
     }
 

@@ -2,7 +2,10 @@
 
 use glam::{UVec3, Vec3};
 
-use super::{Grid, Layout, Volume, fold_range, split_coord, trilinear};
+use super::{
+    Grid, Layout, Volume, clamped_gradient, fold_range, interior_gradient, split_coord,
+    stencil_inside, trilinear,
+};
 use crate::error::{Error, Result};
 use crate::sample::Sample;
 use crate::storage::{Storage, StorageKind};
@@ -16,6 +19,7 @@ pub struct LinearVolume<S: Sample> {
     stride: [usize; 3],
     max_coord: Vec3,
     last: UVec3,
+    inv_two_spacing: Vec3,
 }
 
 impl<S: Sample> LinearVolume<S> {
@@ -36,6 +40,7 @@ impl<S: Sample> LinearVolume<S> {
         Ok(LinearVolume {
             stride: [step(d.x, d.y * d.z), step(d.y, d.z), step(d.z, 1)],
             max_coord: grid.max_coord(),
+            inv_two_spacing: 0.5 / grid.spacing,
             last: grid.last_cell(),
             grid,
             data,
@@ -61,6 +66,21 @@ impl<S: Sample> LinearVolume<S> {
     /// The samples in file order.
     pub fn samples(&self) -> &[S] {
         self.data.as_slice()
+    }
+
+    /// Base indices of the cells at `c ± 1` along x, y, z (see [`interior_gradient`]).
+    #[inline(always)]
+    fn stencil_bases(&self, c: UVec3) -> [usize; 6] {
+        let base = self.index(c);
+        let [sx, sy, sz] = self.stride;
+        [
+            base + sx,
+            base - sx,
+            base + sy,
+            base - sy,
+            base + sz,
+            base - sz,
+        ]
     }
 
     #[inline(always)]
@@ -104,6 +124,25 @@ impl<S: Sample> Volume for LinearVolume<S> {
         )
     }
 
+    #[inline(always)]
+    fn gradient(&self, p: Vec3) -> Vec3 {
+        let (x, fx) = split_coord(p.x, self.max_coord.x, self.last.x);
+        let (y, fy) = split_coord(p.y, self.max_coord.y, self.last.y);
+        let (z, fz) = split_coord(p.z, self.max_coord.z, self.last.z);
+        let c = UVec3::new(x, y, z);
+        if !stencil_inside(c, self.grid.dims) {
+            return clamped_gradient(self, p);
+        }
+        let bases = self.stencil_bases(c);
+        interior_gradient(
+            self.data.as_slice(),
+            bases,
+            self.stride,
+            Vec3::new(fx, fy, fz),
+            self.inv_two_spacing,
+        )
+    }
+
     fn value_range(&self, lo: UVec3, hi: UVec3) -> (S, S) {
         let hi = hi.min(self.grid.dims - UVec3::ONE);
         let data = self.data.as_slice();
@@ -120,5 +159,64 @@ impl<S: Sample> Volume for LinearVolume<S> {
 
     fn preferred_macrocell(&self) -> u32 {
         8
+    }
+
+    /// One streaming pass: each x-slab of cells folds its voxel rows
+    /// element-wise into per-(cell row, z) accumulators (vectorised min/max
+    /// over contiguous rows), then reduces the z windows.
+    fn cell_value_ranges(&self, cell: u32, count: UVec3) -> Vec<(f32, f32)> {
+        use rayon::prelude::*;
+        let d = self.grid.dims;
+        let (ny, nz) = (count.y as usize, count.z as usize);
+        let zlen = d.z as usize;
+        let data = self.data.as_slice();
+        let mut ranges = vec![(0.0f32, 0.0f32); count.x as usize * ny * nz];
+        ranges
+            .par_chunks_mut(ny * nz)
+            .enumerate()
+            .for_each(|(cx, slab)| {
+                let mut lo = vec![S::HIGHEST; ny * zlen];
+                let mut hi = vec![S::LOWEST; ny * zlen];
+                let x_end = (cx as u32 * cell + cell).min(d.x - 1);
+                for x in cx as u32 * cell..=x_end {
+                    for y in 0..d.y {
+                        let row = &data[self.index(UVec3::new(x, y, 0))..][..zlen];
+                        // Row y belongs to cell row y / cell, and also to the one
+                        // below when it lies on a shared plane.
+                        let c_hi = (y / cell).min(count.y - 1);
+                        let c_lo = if y >= cell {
+                            (y - cell).div_ceil(cell)
+                        } else {
+                            0
+                        };
+                        for cy in c_lo..=c_hi {
+                            let o = cy as usize * zlen;
+                            for ((l, h), &v) in lo[o..o + zlen]
+                                .iter_mut()
+                                .zip(&mut hi[o..o + zlen])
+                                .zip(row)
+                            {
+                                *l = l.min_of(v);
+                                *h = h.max_of(v);
+                            }
+                        }
+                    }
+                }
+                for cy in 0..ny {
+                    for cz in 0..nz {
+                        let z0 = cz * cell as usize;
+                        let z1 = (z0 + cell as usize).min(zlen - 1);
+                        let o = cy * zlen;
+                        let a = lo[o + z0..=o + z1]
+                            .iter()
+                            .fold(S::HIGHEST, |m, &v| m.min_of(v));
+                        let b = hi[o + z0..=o + z1]
+                            .iter()
+                            .fold(S::LOWEST, |m, &v| m.max_of(v));
+                        slab[cy * nz + cz] = (a.to_f32(), b.to_f32());
+                    }
+                }
+            });
+        ranges
     }
 }

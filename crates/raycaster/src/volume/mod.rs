@@ -72,30 +72,83 @@ pub trait Volume: Send + Sync {
     /// (clamped to the grid).
     fn value_range(&self, lo: UVec3, hi: UVec3) -> (Self::Sample, Self::Sample);
 
-    /// The macrocell side (in voxels) that suits this layout: one brick for a
-    /// bricked volume.
+    /// The macrocell side (in voxels) that suits this layout.
     fn preferred_macrocell(&self) -> u32;
+
+    /// The value range of every macrocell of side `cell` (cell `c` covers
+    /// voxels `c·cell ..= c·cell + cell` per axis), `count` cells per axis,
+    /// x slowest and z fastest, on the threads of the current rayon pool.
+    fn cell_value_ranges(&self, cell: u32, count: UVec3) -> Vec<(f32, f32)> {
+        use rayon::prelude::*;
+        let per_slab = (count.y * count.z) as usize;
+        let mut ranges = vec![(0.0f32, 0.0f32); count.x as usize * per_slab];
+        ranges
+            .par_chunks_mut(per_slab)
+            .enumerate()
+            .for_each(|(cx, slab)| {
+                for cy in 0..count.y {
+                    for cz in 0..count.z {
+                        let lo = UVec3::new(cx as u32, cy, cz) * cell;
+                        let (a, b) = self.value_range(lo, lo + UVec3::splat(cell));
+                        slab[(cy * count.z + cz) as usize] = (a.to_f32(), b.to_f32());
+                    }
+                }
+            });
+        ranges
+    }
 
     /// Central-difference gradient of the interpolated field at voxel-space
     /// position `p`, in value units per world unit (SPEC §5). Differences are
     /// taken one voxel apart along each axis, clamped at the grid's faces.
     #[inline]
     fn gradient(&self, p: Vec3) -> Vec3 {
-        let g = self.grid();
-        let hi = (g.dims.as_vec3() - Vec3::ONE).max(Vec3::ZERO);
-        let mut out = [0.0f32; 3];
-        for (axis, o) in out.iter_mut().enumerate() {
-            let mut a = p;
-            let mut b = p;
-            a[axis] = (p[axis] - 1.0).max(0.0);
-            b[axis] = (p[axis] + 1.0).min(hi[axis]);
-            let dv = b[axis] - a[axis];
-            if dv > 0.0 {
-                *o = (self.sample(b) - self.sample(a)) / (dv * g.spacing[axis]);
-            }
-        }
-        Vec3::from_array(out)
+        clamped_gradient(self, p)
     }
+}
+
+/// The central-difference gradient of [`Volume::gradient`] for any position,
+/// each difference shortened to stay inside the grid at its faces.
+pub fn clamped_gradient<V: Volume + ?Sized>(volume: &V, p: Vec3) -> Vec3 {
+    let g = volume.grid();
+    let hi = g.max_coord();
+    let mut out = [0.0f32; 3];
+    for (axis, o) in out.iter_mut().enumerate() {
+        let mut a = p;
+        let mut b = p;
+        a[axis] = (p[axis] - 1.0).max(0.0);
+        b[axis] = (p[axis] + 1.0).min(hi[axis]);
+        let dv = b[axis] - a[axis];
+        if dv > 0.0 {
+            *o = (volume.sample(b) - volume.sample(a)) / (dv * g.spacing[axis]);
+        }
+    }
+    Vec3::from_array(out)
+}
+
+/// The same gradient when the stencil (cells `x0 − 1 ..= x0 + 1` per axis) is
+/// inside the grid: the six neighbouring lookups share the fractions of `p`,
+/// so only their base indices differ. `bases` are the base indices of the
+/// cells at `x0 ± 1`, `y0 ± 1`, `z0 ± 1`, in that order.
+#[inline(always)]
+pub(crate) fn interior_gradient<S: Sample>(
+    data: &[S],
+    bases: [usize; 6],
+    stride: [usize; 3],
+    f: Vec3,
+    inv_two_spacing: Vec3,
+) -> Vec3 {
+    let l = |b: usize| trilinear(data, b, stride, f);
+    Vec3::new(
+        l(bases[0]) - l(bases[1]),
+        l(bases[2]) - l(bases[3]),
+        l(bases[4]) - l(bases[5]),
+    ) * inv_two_spacing
+}
+
+/// True when the gradient stencil around cell `c` is inside a grid of `dims`.
+#[inline(always)]
+pub(crate) fn stencil_inside(c: UVec3, dims: UVec3) -> bool {
+    c.cmpge(UVec3::ONE).all() && (c + UVec3::splat(2)).cmplt(dims).all()
 }
 
 /// Smallest and largest of the values yielded, as `f32`.
@@ -120,14 +173,21 @@ pub(crate) fn split_coord(p: f32, max_coord: f32, last: u32) -> (u32, f32) {
 #[inline(always)]
 pub(crate) fn trilinear<S: Sample>(data: &[S], base: usize, stride: [usize; 3], f: Vec3) -> f32 {
     let [sx, sy, sz] = stride;
-    let c000 = data[base].to_f32();
-    let c001 = data[base + sz].to_f32();
-    let c010 = data[base + sy].to_f32();
-    let c011 = data[base + sy + sz].to_f32();
-    let c100 = data[base + sx].to_f32();
-    let c101 = data[base + sx + sz].to_f32();
-    let c110 = data[base + sx + sy].to_f32();
-    let c111 = data[base + sx + sy + sz].to_f32();
+    let last = base + sx + sy + sz;
+    // One bounds check for the whole cell instead of eight: the largest
+    // offset is `last`, every other one is a sub-sum of it.
+    assert!(last < data.len(), "trilinear cell outside the volume");
+    // SAFETY: the strides are non-negative, so each index below lies in
+    // `base..=last`, and `last < data.len()` was just checked.
+    let at = |i: usize| unsafe { data.get_unchecked(i) }.to_f32();
+    let c000 = at(base);
+    let c001 = at(base + sz);
+    let c010 = at(base + sy);
+    let c011 = at(base + sy + sz);
+    let c100 = at(base + sx);
+    let c101 = at(base + sx + sz);
+    let c110 = at(base + sx + sy);
+    let c111 = at(last);
     let c00 = c000 + (c001 - c000) * f.z;
     let c01 = c010 + (c011 - c010) * f.z;
     let c10 = c100 + (c101 - c100) * f.z;
@@ -136,3 +196,6 @@ pub(crate) fn trilinear<S: Sample>(data: &[S], base: usize, stride: [usize; 3], 
     let c1 = c10 + (c11 - c10) * f.y;
     c0 + (c1 - c0) * f.x
 }
+
+#[cfg(test)]
+mod tests;

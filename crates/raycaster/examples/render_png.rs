@@ -1,0 +1,44 @@
+//! Opens a volume file and writes a PNG: the smallest complete program.
+//!
+//! ```text
+//! cargo run --release -p raycaster --example render_png -- VOLUME.vol out.png [TF_PRESET]
+//! ```
+
+use raycaster::prelude::*;
+
+fn main() {
+    let args: Vec<String> = std::env::args().skip(1).collect();
+    if args.len() < 2 {
+        eprintln!("usage: render_png VOLUME.vol OUT.png [shapes|skull|ramp|...]");
+        std::process::exit(2);
+    }
+    if let Err(e) = run(
+        &args[0],
+        &args[1],
+        args.get(2).map_or("ramp", String::as_str),
+    ) {
+        eprintln!("render_png: {e}");
+        std::process::exit(1);
+    }
+}
+
+fn run(input: &str, output: &str, preset: &str) -> Result<(), raycaster::Error> {
+    // Map the file (no copy), build the empty-space-skipping data once.
+    let volume = raycaster::format::open(input.as_ref(), LoadMode::Map)?;
+    let tf = TransferFunction::preset(preset, volume.sample_type())
+        .ok_or_else(|| raycaster::Error::InvalidArgument(format!("unknown preset {preset}")))?;
+    let scene = Scene::new(volume);
+    // A camera that frames the whole volume from the +z side.
+    let camera = Camera::framing(&scene.grid().bounds(), 512, 512, 45.0);
+    // All cores, 16-pixel tiles.
+    let mut renderer = TiledRenderer::new(0, 16)?;
+    let frame = renderer.render(&scene, &camera, &tf, &RenderOptions::default())?;
+    frame.save_png(output.as_ref())?;
+    println!(
+        "{output}: {} rays, {} samples, {:.1} ms",
+        frame.stats.rays,
+        frame.stats.samples,
+        frame.stats.time.as_secs_f64() * 1e3
+    );
+    Ok(())
+}

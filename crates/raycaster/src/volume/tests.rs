@@ -1,0 +1,116 @@
+//! Sampling tests shared by both layouts.
+
+use glam::{UVec3, Vec3};
+
+use super::*;
+
+/// An affine field: trilinear interpolation must reproduce it exactly and its
+/// gradient is the coefficient vector divided by the spacing.
+fn affine(v: UVec3) -> f32 {
+    2.0 * v.x as f32 + 3.0 * v.y as f32 - 1.5 * v.z as f32 + 100.0
+}
+
+fn volumes(dims: UVec3, spacing: Vec3, side: u32) -> (LinearVolume<f32>, BrickedVolume<f32>) {
+    let grid = Grid::new(dims, spacing);
+    (
+        LinearVolume::from_fn(grid, affine),
+        BrickedVolume::from_fn(grid, side, affine).unwrap(),
+    )
+}
+
+#[test]
+fn trilinear_reproduces_affine_fields_in_both_layouts() {
+    let mut rng = fastrand::Rng::with_seed(1);
+    for (dims, side) in [
+        (UVec3::new(9, 7, 12), 4),
+        (UVec3::new(5, 1, 6), 2),
+        (UVec3::new(17, 16, 3), 16),
+    ] {
+        let (lin, bri) = volumes(dims, Vec3::new(1.0, 0.5, 2.0), side);
+        let max = (dims - UVec3::ONE).as_vec3();
+        for _ in 0..500 {
+            let p = Vec3::new(rng.f32(), rng.f32(), rng.f32()) * max;
+            let want = 2.0 * p.x + 3.0 * p.y - 1.5 * p.z + 100.0;
+            assert!((lin.sample(p) - want).abs() < 1e-3, "{p}");
+            assert_eq!(lin.sample(p), bri.sample(p), "layouts differ at {p}");
+        }
+        // Grid points and the far corner read the voxels themselves.
+        assert_eq!(lin.sample(max), affine(dims - UVec3::ONE));
+        assert_eq!(bri.sample(max), affine(dims - UVec3::ONE));
+        // Out-of-grid positions clamp.
+        assert_eq!(lin.sample(Vec3::splat(-5.0)), affine(UVec3::ZERO));
+    }
+}
+
+#[test]
+fn fast_gradient_equals_clamped_gradient_and_the_analytic_one() {
+    let mut rng = fastrand::Rng::with_seed(2);
+    let spacing = Vec3::new(1.0, 0.5, 2.0);
+    let (lin, bri) = volumes(UVec3::new(20, 18, 22), spacing, 6);
+    let exact = Vec3::new(2.0, 3.0, -1.5) / spacing;
+    let max = Vec3::new(19.0, 17.0, 21.0);
+    for _ in 0..500 {
+        let p = Vec3::new(rng.f32(), rng.f32(), rng.f32()) * max;
+        for g in [lin.gradient(p), bri.gradient(p), clamped_gradient(&lin, p)] {
+            assert!((g - exact).length() < 1e-3, "{p}: {g} vs {exact}");
+        }
+    }
+    // A non-affine field: the interior fast path must agree with the generic one.
+    let grid = Grid::new(UVec3::new(12, 11, 13), spacing);
+    let f = |v: UVec3| ((v.x * 37 + v.y * 11 + v.z * v.z * 5) % 251) as u8;
+    let lin = LinearVolume::from_fn(grid, f);
+    let bri = BrickedVolume::from_fn(grid, 5, f).unwrap();
+    for _ in 0..500 {
+        let p = Vec3::new(rng.f32() * 11.0, rng.f32() * 10.0, rng.f32() * 12.0);
+        let want = clamped_gradient(&lin, p);
+        assert!((lin.gradient(p) - want).length() < 1e-3);
+        assert!((bri.gradient(p) - want).length() < 1e-3);
+    }
+}
+
+#[test]
+fn value_ranges_agree_between_layouts() {
+    let mut rng = fastrand::Rng::with_seed(3);
+    let grid = Grid::new(UVec3::new(23, 9, 31), Vec3::ONE);
+    let f = |v: UVec3| ((v.x * 131 + v.y * 71 + v.z * 17) % 253) as u8;
+    let lin = LinearVolume::from_fn(grid, f);
+    for side in [2, 3, 7, 16] {
+        let bri = BrickedVolume::from_fn(grid, side, f).unwrap();
+        for _ in 0..200 {
+            let lo = UVec3::new(rng.u32(0..23), rng.u32(0..9), rng.u32(0..31));
+            let hi = lo + UVec3::new(rng.u32(0..10), rng.u32(0..10), rng.u32(0..10));
+            let brute = (lo.x..=hi.x.min(22))
+                .flat_map(|x| {
+                    (lo.y..=hi.y.min(8)).flat_map(move |y| {
+                        (lo.z..=hi.z.min(30)).map(move |z| f(UVec3::new(x, y, z)))
+                    })
+                })
+                .fold((255u8, 0u8), |(a, b), v| (a.min(v), b.max(v)));
+            assert_eq!(lin.value_range(lo, hi), brute);
+            assert_eq!(bri.value_range(lo, hi), brute, "side {side} box {lo}..{hi}");
+        }
+    }
+}
+
+#[test]
+fn fast_linear_macrocell_ranges_equal_the_generic_ones() {
+    for (dims, cell) in [
+        (UVec3::new(23, 9, 31), 4),
+        (UVec3::new(17, 17, 17), 8),
+        (UVec3::new(16, 1, 9), 3),
+        (UVec3::new(1, 1, 1), 8),
+        (UVec3::new(40, 33, 2), 8),
+    ] {
+        let grid = Grid::new(dims, Vec3::ONE);
+        let f = |v: UVec3| ((v.x * 131 + v.y * 71 + v.z * 17) % 253) as u8;
+        let lin = LinearVolume::from_fn(grid, f);
+        let bri = BrickedVolume::from_fn(grid, 5, f).unwrap();
+        let n = |d: u32| if d <= 1 { 1 } else { (d - 1).div_ceil(cell) };
+        let count = UVec3::new(n(dims.x), n(dims.y), n(dims.z));
+        assert_eq!(
+            lin.cell_value_ranges(cell, count),
+            bri.cell_value_ranges(cell, count),
+            "{dims} cell {cell}"
+        );
+    }
+}

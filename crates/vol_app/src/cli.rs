@@ -1,0 +1,242 @@
+//! Command-line definitions (SPEC §6).
+
+use std::path::PathBuf;
+use std::process::ExitCode;
+
+use clap::{Args, Parser, Subcommand};
+use glam::Vec3;
+
+/// Volume viewer and headless renderer for CPU ray casting.
+#[derive(Debug, Parser)]
+#[command(name = "vol_app", version, about, long_about = None)]
+pub struct Cli {
+    /// What to do; without a subcommand the interactive viewer opens.
+    #[command(subcommand)]
+    pub command: Option<Command>,
+}
+
+/// Subcommands.
+#[derive(Debug, Subcommand)]
+pub enum Command {
+    /// Render a volume to a PNG without a window, optionally timing it.
+    Render(RenderArgs),
+}
+
+/// `on` or `off`.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, clap::ValueEnum)]
+pub enum Switch {
+    /// Enabled.
+    On,
+    /// Disabled.
+    Off,
+}
+
+impl Switch {
+    pub fn on(self) -> bool {
+        self == Switch::On
+    }
+}
+
+/// Renderer choice.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, clap::ValueEnum)]
+pub enum RendererKind {
+    /// One thread, the reference.
+    Serial,
+    /// Screen tiles on a thread pool (the default: fastest measured).
+    Tiles,
+    /// Object-parallel bricks (not built yet; falls back to tiles).
+    Object,
+}
+
+/// Rendering mode.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, clap::ValueEnum)]
+pub enum Mode {
+    /// Direct volume rendering (front-to-back compositing).
+    Dvr,
+    /// Maximum intensity projection.
+    Mip,
+    /// Mean value along each ray (x-ray).
+    Avg,
+    /// Isosurface at --iso.
+    Iso,
+}
+
+/// Options of `vol_app render`.
+#[derive(Debug, Args)]
+#[command(
+    after_help = "Vector options take comma-separated numbers, negative ones as they are: \
+--camera-pos -120.5,40,300.\n\nExample (the seed thesis's benchmark frame):\n  vol_app render \
+volumes/800shapes_block16.vol --size 700x700 --camera-pos 1100,1100,1100 --look-at 0,0,0 --fov 60 \
+--step 0.2 --tf-preset shapes --repeat 5 --stats"
+)]
+pub struct RenderArgs {
+    /// Volume file (.vol).
+    pub file: PathBuf,
+    /// Output PNG (RGB8). Default: out.png, unless --stats is given.
+    #[arg(long, value_name = "PNG")]
+    pub out: Option<PathBuf>,
+    /// Image size in pixels.
+    #[arg(long, value_name = "WxH", default_value = "700x700", value_parser = parse_size)]
+    pub size: (u32, u32),
+    /// Camera position (world units). Default: on the +z side of the volume's
+    /// centre, far enough to see all of it.
+    #[arg(long, value_name = "X,Y,Z", allow_hyphen_values = true, value_parser = parse_vec3)]
+    pub camera_pos: Option<Vec3>,
+    /// Point the camera looks at. Default: the volume's centre.
+    #[arg(long, value_name = "X,Y,Z", allow_hyphen_values = true, value_parser = parse_vec3)]
+    pub look_at: Option<Vec3>,
+    /// Camera up vector.
+    #[arg(long, value_name = "X,Y,Z", allow_hyphen_values = true, value_parser = parse_vec3, default_value = "0,1,0")]
+    pub up: Vec3,
+    /// Vertical field of view in degrees (for --ortho it sizes the view).
+    #[arg(long, value_name = "DEG", default_value_t = 45.0)]
+    pub fov: f32,
+    /// Orthographic projection instead of perspective.
+    #[arg(long)]
+    pub ortho: bool,
+    /// Sampling step in world units. Default: half the smallest spacing.
+    #[arg(long, value_name = "S")]
+    pub step: Option<f32>,
+    /// Transfer function JSON file (SPEC §4).
+    #[arg(long, value_name = "FILE.json", conflicts_with = "tf_preset")]
+    pub tf: Option<PathBuf>,
+    /// Named transfer function: shapes, skull, ramp, ct-bone, ct-soft, mr-default.
+    #[arg(long, value_name = "NAME")]
+    pub tf_preset: Option<String>,
+    /// Rendering mode.
+    #[arg(long, value_enum, default_value_t = Mode::Dvr)]
+    pub mode: Mode,
+    /// Iso value for --mode iso. Default: the middle of the data's value range.
+    #[arg(long, value_name = "V", allow_hyphen_values = true)]
+    pub iso: Option<f32>,
+    /// Phong shading from gradients.
+    #[arg(long, value_enum, default_value_t = Switch::On)]
+    pub shading: Switch,
+    /// Early ray termination.
+    #[arg(long, value_enum, default_value_t = Switch::On)]
+    pub ert: Switch,
+    /// Opacity at which early ray termination stops a ray.
+    #[arg(long, value_name = "A", default_value_t = 0.99)]
+    pub ert_threshold: f32,
+    /// Empty-space skipping.
+    #[arg(long, value_enum, default_value_t = Switch::On)]
+    pub ess: Switch,
+    /// Which renderer schedules the rays.
+    #[arg(long, value_enum, default_value_t = RendererKind::Tiles)]
+    pub renderer: RendererKind,
+    /// Render threads (0 = all cores). The serial renderer always uses one.
+    #[arg(long, value_name = "N", default_value_t = 0)]
+    pub threads: usize,
+    /// Background colour, each channel 0..1.
+    #[arg(long, value_name = "R,G,B", value_parser = parse_vec3, default_value = "0,0,0")]
+    pub background: Vec3,
+    /// Render N times after one warm-up and report the median.
+    #[arg(long, value_name = "N", default_value_t = 1, value_parser = clap::value_parser!(u32).range(1..))]
+    pub repeat: u32,
+    /// Print one JSON object of timings and counters on stdout.
+    #[arg(long)]
+    pub stats: bool,
+    /// Read the file into RAM instead of memory-mapping it.
+    #[arg(long)]
+    pub in_ram: bool,
+    /// Macrocell side in voxels for empty-space skipping (default: the
+    /// volume's own choice).
+    #[arg(long, value_name = "N", value_parser = clap::value_parser!(u32).range(1..=1024))]
+    pub macrocell: Option<u32>,
+}
+
+/// Parses the command line; on error prints one line (or the help text) and
+/// returns the exit code.
+pub fn parse() -> Result<Cli, ExitCode> {
+    match Cli::try_parse() {
+        Ok(cli) => Ok(cli),
+        Err(e) => {
+            use clap::error::ErrorKind::*;
+            match e.kind() {
+                DisplayHelp | DisplayVersion | DisplayHelpOnMissingArgumentOrSubcommand => {
+                    let _ = e.print();
+                    Err(if e.kind() == DisplayHelpOnMissingArgumentOrSubcommand {
+                        ExitCode::from(2)
+                    } else {
+                        ExitCode::SUCCESS
+                    })
+                }
+                _ => {
+                    let text = e.render().to_string();
+                    let first = text.lines().next().unwrap_or("invalid arguments");
+                    let first = first.trim_start_matches("error: ");
+                    eprintln!("vol_app: {first} (see --help)");
+                    Err(ExitCode::from(2))
+                }
+            }
+        }
+    }
+}
+
+fn parse_vec3(s: &str) -> Result<Vec3, String> {
+    let parts: Vec<&str> = s.split(',').map(str::trim).collect();
+    if parts.len() != 3 {
+        return Err(format!("expected three comma-separated numbers, got '{s}'"));
+    }
+    let mut v = [0.0f32; 3];
+    for (o, p) in v.iter_mut().zip(&parts) {
+        *o = p
+            .parse::<f32>()
+            .map_err(|_| format!("'{p}' is not a number"))?;
+        if !o.is_finite() {
+            return Err(format!("'{p}' is not a finite number"));
+        }
+    }
+    Ok(Vec3::from_array(v))
+}
+
+fn parse_size(s: &str) -> Result<(u32, u32), String> {
+    let (w, h) = s
+        .split_once(['x', 'X'])
+        .ok_or_else(|| format!("expected WIDTHxHEIGHT, got '{s}'"))?;
+    let p = |t: &str| {
+        t.trim()
+            .parse::<u32>()
+            .ok()
+            .filter(|&v| (1..=16384).contains(&v))
+            .ok_or_else(|| format!("'{t}' is not a size in 1..=16384"))
+    };
+    Ok((p(w)?, p(h)?))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn vectors_accept_negative_numbers() {
+        assert_eq!(
+            parse_vec3("-120.5,40,300").unwrap(),
+            Vec3::new(-120.5, 40.0, 300.0)
+        );
+        assert!(parse_vec3("1,2").is_err());
+        assert!(parse_vec3("1,2,x").is_err());
+        assert!(parse_vec3("1,2,inf").is_err());
+        assert_eq!(parse_size("700x500").unwrap(), (700, 500));
+        assert!(parse_size("0x5").is_err());
+    }
+
+    #[test]
+    fn negative_camera_position_parses_as_a_value() {
+        let cli = Cli::try_parse_from([
+            "vol_app",
+            "render",
+            "f.vol",
+            "--camera-pos",
+            "-1,-2,-3",
+            "--iso",
+            "-5",
+        ])
+        .unwrap();
+        let Some(Command::Render(a)) = cli.command else {
+            panic!()
+        };
+        assert_eq!(a.camera_pos, Some(Vec3::new(-1.0, -2.0, -3.0)));
+        assert_eq!(a.iso, Some(-5.0));
+    }
+}

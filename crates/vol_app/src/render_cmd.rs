@@ -1,0 +1,169 @@
+//! `vol_app render`: open, render, time, save.
+
+use std::time::Instant;
+
+use raycaster::camera::{Camera, Projection};
+use raycaster::integrator::RenderMode;
+use raycaster::prelude::*;
+use raycaster::transfer::PRESET_NAMES;
+
+use crate::anyhow_like::Error;
+use crate::cli::{Mode, RenderArgs, RendererKind};
+use crate::stats::{RenderStats, median, peak_rss_mb};
+
+/// Runs the `render` subcommand.
+pub fn run(args: &RenderArgs) -> Result<(), Error> {
+    let load_start = Instant::now();
+    let mode = if args.in_ram {
+        LoadMode::Ram
+    } else {
+        LoadMode::Map
+    };
+    let volume = raycaster::format::open(&args.file, mode)?;
+    let sample_type = volume.sample_type();
+    let scene = match args.macrocell {
+        Some(m) => Scene::with_macrocell(volume, m),
+        None => Scene::new(volume),
+    };
+    let load_ms = ms(load_start.elapsed());
+
+    let tf = match (&args.tf, &args.tf_preset) {
+        (Some(path), _) => TransferFunction::from_json_file(path)?,
+        (None, Some(name)) => TransferFunction::preset(name, sample_type).ok_or_else(|| {
+            format!(
+                "unknown transfer function preset '{name}' (known: {})",
+                PRESET_NAMES.join(", ")
+            )
+        })?,
+        (None, None) => {
+            TransferFunction::preset("ramp", sample_type).ok_or("ramp preset missing")?
+        }
+    };
+
+    let (width, height) = args.size;
+    let bounds = scene.grid().bounds();
+    let mut camera = Camera::framing(&bounds, width, height, args.fov);
+    if let Some(p) = args.camera_pos {
+        camera.position = p;
+    }
+    camera.target = args.look_at.unwrap_or(bounds.center());
+    camera.up = args.up;
+    camera.fov_y_deg = args.fov;
+    if args.ortho {
+        camera.projection = Projection::Orthographic;
+    }
+    if camera.frame().is_none() {
+        return Err(format!(
+            "camera is degenerate: position {} and look-at {} must differ, up {} must not be parallel to the view, fov {} must be in (0, 180)",
+            camera.position, camera.target, camera.up, camera.fov_y_deg
+        )
+        .into());
+    }
+
+    let (lo, hi) = scene.value_range();
+    let options = RenderOptions {
+        mode: match args.mode {
+            Mode::Dvr => RenderMode::Dvr,
+            Mode::Mip => RenderMode::Mip,
+            Mode::Avg => RenderMode::Avg,
+            Mode::Iso => RenderMode::Iso,
+        },
+        step: args.step,
+        ert: args.ert.on(),
+        ert_threshold: args.ert_threshold,
+        ess: args.ess.on(),
+        shading: args.shading.on(),
+        phong: None,
+        iso_value: args.iso.unwrap_or(0.5 * (lo + hi)),
+        background: args.background,
+    };
+    if let Some(s) = args.step
+        && !(s.is_finite() && s > 0.0)
+    {
+        return Err(format!("--step {s} must be a finite number greater than 0").into());
+    }
+    if args.background.min_element() < 0.0 || args.background.max_element() > 1.0 {
+        return Err("--background channels must be in 0..1".into());
+    }
+
+    let (frames, name, threads) = match args.renderer {
+        RendererKind::Serial => {
+            let mut r = SerialRenderer::new();
+            (
+                render_repeated(&mut r, &scene, &camera, &tf, &options, args.repeat)?,
+                r.name(),
+                1,
+            )
+        }
+        RendererKind::Tiles | RendererKind::Object => {
+            let mut r = TiledRenderer::new(args.threads, 16)?;
+            let t = r.threads();
+            (
+                render_repeated(&mut r, &scene, &camera, &tf, &options, args.repeat)?,
+                r.name(),
+                t,
+            )
+        }
+    };
+    let (last, times) = frames;
+
+    let out = match (&args.out, args.stats) {
+        (Some(p), _) => Some(p.clone()),
+        (None, false) => Some("out.png".into()),
+        (None, true) => None,
+    };
+    if let Some(path) = &out {
+        last.save_png(path)?;
+    }
+    if args.stats {
+        let stats = RenderStats {
+            width,
+            height,
+            renderer: name.to_string(),
+            threads,
+            frame_ms_median: median(&times),
+            frame_ms: times,
+            load_ms,
+            rays: last.stats.rays,
+            samples: last.stats.samples,
+            peak_rss_mb: peak_rss_mb(),
+        };
+        println!("{}", serde_json::to_string(&stats)?);
+    } else if let Some(path) = &out {
+        eprintln!(
+            "vol_app: wrote {} ({}x{}, {:.1} ms, {} samples)",
+            path.display(),
+            width,
+            height,
+            ms(last.stats.time),
+            last.stats.samples
+        );
+    }
+    Ok(())
+}
+
+/// One warm-up frame when repeating, then `repeat` timed frames.
+fn render_repeated<R: Renderer>(
+    r: &mut R,
+    scene: &Scene,
+    camera: &Camera,
+    tf: &TransferFunction,
+    options: &RenderOptions,
+    repeat: u32,
+) -> Result<(Frame, Vec<f64>), Error> {
+    let mut last = r.render(scene, camera, tf, options)?;
+    if repeat == 1 {
+        let t = ms(last.stats.time);
+        return Ok((last, vec![t]));
+    }
+    let mut times = Vec::with_capacity(repeat as usize);
+    for _ in 0..repeat {
+        last = r.render(scene, camera, tf, options)?;
+        times.push(ms(last.stats.time));
+    }
+    Ok((last, times))
+}
+
+fn ms(d: std::time::Duration) -> f64 {
+    (d.as_secs_f64() * 1e5).round() / 100.0
+}

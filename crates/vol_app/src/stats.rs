@@ -1,0 +1,55 @@
+//! The `--stats` JSON object (SPEC §6).
+
+use serde::Serialize;
+
+/// Timings and counters of a `vol_app render` run.
+#[derive(Debug, Serialize)]
+pub struct RenderStats {
+    pub width: u32,
+    pub height: u32,
+    pub renderer: String,
+    pub threads: usize,
+    pub frame_ms_median: f64,
+    pub frame_ms: Vec<f64>,
+    pub load_ms: f64,
+    pub rays: u64,
+    pub samples: u64,
+    pub peak_rss_mb: f64,
+}
+
+/// The median of `v` (mean of the middle two for an even count).
+pub fn median(v: &[f64]) -> f64 {
+    if v.is_empty() {
+        return 0.0;
+    }
+    let mut s = v.to_vec();
+    s.sort_by(f64::total_cmp);
+    let n = s.len();
+    if n % 2 == 1 {
+        s[n / 2]
+    } else {
+        0.5 * (s[n / 2 - 1] + s[n / 2])
+    }
+}
+
+/// Peak resident set size of this process in MB (Linux `VmHWM`), 0 elsewhere.
+pub fn peak_rss_mb() -> f64 {
+    std::fs::read_to_string("/proc/self/status")
+        .ok()
+        .and_then(|s| {
+            s.lines()
+                .find(|l| l.starts_with("VmHWM:"))
+                .and_then(|l| l.split_whitespace().nth(1))
+                .and_then(|kb| kb.parse::<f64>().ok())
+        })
+        .map_or(0.0, |kb| kb / 1024.0)
+}
+
+#[cfg(test)]
+mod tests {
+    #[test]
+    fn median_of_odd_and_even() {
+        assert_eq!(super::median(&[3.0, 1.0, 2.0]), 2.0);
+        assert_eq!(super::median(&[4.0, 1.0, 2.0, 3.0]), 2.5);
+    }
+}

@@ -1,0 +1,314 @@
+//! End-to-end tests of the `vol_app` binary: arguments, errors, outputs.
+
+use std::path::PathBuf;
+use std::process::{Command, Output};
+
+use glam::{UVec3, Vec3};
+use raycaster::format::vol::{self, VolLayout};
+use raycaster::volume::{Grid, LinearVolume};
+
+fn bin() -> Command {
+    let mut c = Command::new(env!("CARGO_BIN_EXE_vol_app"));
+    c.env("RUST_BACKTRACE", "1");
+    c
+}
+
+struct TempDir(PathBuf);
+
+impl TempDir {
+    fn new(tag: &str) -> Self {
+        let p = std::env::temp_dir().join(format!("vol_app_cli_{tag}_{}", std::process::id()));
+        let _ = std::fs::remove_dir_all(&p);
+        std::fs::create_dir_all(&p).unwrap();
+        TempDir(p)
+    }
+    fn path(&self, name: &str) -> PathBuf {
+        self.0.join(name)
+    }
+}
+
+impl Drop for TempDir {
+    fn drop(&mut self) {
+        let _ = std::fs::remove_dir_all(&self.0);
+    }
+}
+
+/// A 24³ ball of value 200 in a linear `.vol` file.
+fn ball_file(dir: &TempDir, layout: VolLayout) -> PathBuf {
+    let grid = Grid::new(UVec3::splat(24), Vec3::ONE);
+    let v = LinearVolume::from_fn(grid, |p| {
+        if (p.as_vec3() - Vec3::splat(11.5)).length() < 8.0 {
+            200u8
+        } else {
+            0
+        }
+    });
+    let path = dir.path(&format!("ball_{layout:?}.vol").replace([' ', '{', '}', ':'], ""));
+    vol::write(&path, &v, layout).unwrap();
+    path
+}
+
+fn assert_one_line_error(out: &Output, needle: &str) {
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(!out.status.success(), "expected failure, stderr: {err}");
+    assert_eq!(err.trim_end().lines().count(), 1, "not one line: {err}");
+    assert!(!err.contains("panicked"), "panic: {err}");
+    assert!(!err.contains("stack backtrace"), "backtrace: {err}");
+    assert!(err.contains(needle), "'{needle}' not in: {err}");
+}
+
+#[test]
+fn help_exits_zero_and_documents_options() {
+    let out = bin().args(["render", "--help"]).output().unwrap();
+    assert!(out.status.success());
+    let text = String::from_utf8_lossy(&out.stdout);
+    for opt in [
+        "--camera-pos",
+        "--look-at",
+        "--fov",
+        "--ortho",
+        "--step",
+        "--tf-preset",
+        "--mode",
+        "--iso",
+        "--shading",
+        "--ert",
+        "--ess",
+        "--renderer",
+        "--threads",
+        "--background",
+        "--repeat",
+        "--stats",
+    ] {
+        assert!(text.contains(opt), "{opt} missing from help");
+    }
+    assert!(bin().arg("--help").output().unwrap().status.success());
+}
+
+#[test]
+fn renders_a_png_with_the_ball_in_the_middle() {
+    let dir = TempDir::new("png");
+    for layout in [VolLayout::Linear, VolLayout::Bricked { side: 8 }] {
+        let file = ball_file(&dir, layout);
+        let png = dir.path("out.png");
+        let out = bin()
+            .arg("render")
+            .arg(&file)
+            .args(["--size", "64x48", "--tf-preset", "skull", "--out"])
+            .arg(&png)
+            .output()
+            .unwrap();
+        assert!(
+            out.status.success(),
+            "{}",
+            String::from_utf8_lossy(&out.stderr)
+        );
+        let img = image::open(&png).unwrap().to_rgb8();
+        assert_eq!(img.dimensions(), (64, 48));
+        assert!(img.get_pixel(32, 24)[0] > 100, "centre is dark");
+        assert_eq!(img.get_pixel(0, 0).0, [0, 0, 0], "corner is not background");
+    }
+}
+
+#[test]
+fn stats_is_one_json_object_with_the_spec_fields() {
+    let dir = TempDir::new("stats");
+    let file = ball_file(&dir, VolLayout::Linear);
+    for renderer in ["serial", "tiles", "object"] {
+        let out = bin()
+            .arg("render")
+            .arg(&file)
+            .args([
+                "--size",
+                "40x30",
+                "--repeat",
+                "3",
+                "--stats",
+                "--renderer",
+                renderer,
+                "--threads",
+                "2",
+            ])
+            .output()
+            .unwrap();
+        assert!(
+            out.status.success(),
+            "{}",
+            String::from_utf8_lossy(&out.stderr)
+        );
+        let v: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
+        assert_eq!(v["width"], 40);
+        assert_eq!(v["height"], 30);
+        assert_eq!(v["frame_ms"].as_array().unwrap().len(), 3);
+        for key in [
+            "renderer",
+            "threads",
+            "frame_ms_median",
+            "load_ms",
+            "rays",
+            "samples",
+            "peak_rss_mb",
+        ] {
+            assert!(!v[key].is_null(), "{key} missing in {v}");
+        }
+        assert!(v["samples"].as_u64().unwrap() > 0);
+        assert!(v["rays"].as_u64().unwrap() > 0);
+        if renderer == "serial" {
+            assert_eq!(v["threads"], 1);
+        }
+    }
+}
+
+#[test]
+fn negative_vector_values_are_accepted() {
+    let dir = TempDir::new("neg");
+    let file = ball_file(&dir, VolLayout::Linear);
+    let out = bin()
+        .arg("render")
+        .arg(&file)
+        .args([
+            "--size",
+            "16x16",
+            "--camera-pos",
+            "-30.5,-20,-40",
+            "--stats",
+        ])
+        .output()
+        .unwrap();
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+}
+
+fn write_bytes(dir: &TempDir, name: &str, bytes: &[u8]) -> PathBuf {
+    let p = dir.path(name);
+    std::fs::write(&p, bytes).unwrap();
+    p
+}
+
+fn header(dims: [u32; 3], spacing: [f32; 3], layout: u8, extra: u8) -> Vec<u8> {
+    let mut b = Vec::new();
+    dims.iter()
+        .for_each(|d| b.extend_from_slice(&d.to_le_bytes()));
+    spacing
+        .iter()
+        .for_each(|s| b.extend_from_slice(&s.to_le_bytes()));
+    b.extend_from_slice(&[layout, extra]);
+    b
+}
+
+#[test]
+fn bad_vol_files_give_one_line_errors_naming_the_file() {
+    let dir = TempDir::new("bad");
+    let mut cases: Vec<(&str, Vec<u8>, &str)> = vec![
+        (
+            "short.vol",
+            vec![1, 2, 3],
+            "shorter than the 26-byte header",
+        ),
+        (
+            "zero.vol",
+            header([0, 2, 2], [1.0; 3], 1, 0),
+            "dimension X is 0",
+        ),
+        (
+            "nan.vol",
+            header([2, 2, 2], [1.0, f32::NAN, 1.0], 1, 0),
+            "spacing Y",
+        ),
+        (
+            "neg.vol",
+            header([2, 2, 2], [1.0, 1.0, -2.0], 1, 0),
+            "spacing Z",
+        ),
+        (
+            "layout.vol",
+            header([2, 2, 2], [1.0; 3], 7, 0),
+            "unknown layout byte 7",
+        ),
+        (
+            "brick.vol",
+            header([2, 2, 2], [1.0; 3], 2, 1),
+            "brick side 1",
+        ),
+        (
+            "overflow.vol",
+            header([u32::MAX; 3], [1.0; 3], 1, 0),
+            "overflow",
+        ),
+    ];
+    let mut truncated = header([4, 4, 4], [1.0; 3], 1, 0);
+    truncated.extend(vec![0u8; 63]);
+    cases.push(("trunc.vol", truncated, "expected 90 bytes"));
+    let mut long = header([2, 2, 2], [1.0; 3], 2, 4);
+    long.extend(vec![0u8; 65]);
+    cases.push(("long.vol", long, "expected 90 bytes"));
+    for (name, bytes, needle) in cases {
+        let p = write_bytes(&dir, name, &bytes);
+        let out = bin()
+            .arg("render")
+            .arg(&p)
+            .args(["--size", "8x8", "--stats"])
+            .output()
+            .unwrap();
+        assert_one_line_error(&out, needle);
+        assert_one_line_error(&out, name);
+    }
+    let out = bin()
+        .args(["render", "/nonexistent/x.vol"])
+        .output()
+        .unwrap();
+    assert_one_line_error(&out, "/nonexistent/x.vol");
+}
+
+#[test]
+fn bad_arguments_give_one_line_errors() {
+    let dir = TempDir::new("args");
+    let file = ball_file(&dir, VolLayout::Linear);
+    let f = file.to_str().unwrap();
+    let cases: Vec<(Vec<&str>, &str)> = vec![
+        (vec!["--size", "10"], "WIDTHxHEIGHT"),
+        (vec!["--camera-pos", "1,2"], "three"),
+        (
+            vec!["--tf-preset", "nope"],
+            "unknown transfer function preset",
+        ),
+        (vec!["--step", "0"], "--step"),
+        (vec!["--mode", "fancy"], "fancy"),
+        (
+            vec!["--camera-pos", "12,12,12", "--look-at", "12,12,12"],
+            "degenerate",
+        ),
+        (vec!["--tf", "/nonexistent/tf.json"], "/nonexistent/tf.json"),
+        (vec!["--repeat", "0"], "0"),
+    ];
+    for (args, needle) in cases {
+        let out = bin()
+            .args(["render", f])
+            .args(&args)
+            .args(["--stats"])
+            .output()
+            .unwrap();
+        assert_one_line_error(&out, needle);
+    }
+    let bad_tf = write_bytes(
+        &dir,
+        "bad.json",
+        br#"{"points": [{"value": 1, "color": [1,1,1], "opacity": 3}]}"#,
+    );
+    let out = bin()
+        .args(["render", f, "--stats", "--tf"])
+        .arg(&bad_tf)
+        .output()
+        .unwrap();
+    assert_one_line_error(&out, "bad.json");
+}
+
+#[test]
+fn without_a_subcommand_it_points_to_render() {
+    let out = bin().output().unwrap();
+    assert!(!out.status.success());
+    assert!(String::from_utf8_lossy(&out.stderr).contains("vol_app render"));
+}
