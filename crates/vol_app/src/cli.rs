@@ -70,8 +70,8 @@ volumes/800shapes_block16.vol --size 700x700 --camera-pos 1100,1100,1100 --look-
 --step 0.2 --tf-preset shapes --repeat 5 --stats"
 )]
 pub struct RenderArgs {
-    /// Volume file (.vol).
-    pub file: PathBuf,
+    /// Volume file (.vol). Without it, the built-in demo volume is rendered.
+    pub file: Option<PathBuf>,
     /// Output PNG (RGB8). Default: out.png, unless --stats is given.
     #[arg(long, value_name = "PNG")]
     pub out: Option<PathBuf>,

@@ -5,6 +5,7 @@
 //! says so and points to `vol_app render`.
 
 mod cli;
+mod demo;
 mod render_cmd;
 mod stats;
 

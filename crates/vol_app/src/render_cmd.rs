@@ -19,7 +19,10 @@ pub fn run(args: &RenderArgs) -> Result<(), Error> {
     } else {
         LoadMode::Map
     };
-    let volume = raycaster::format::open(&args.file, mode)?;
+    let volume = match &args.file {
+        Some(path) => raycaster::format::open(path, mode)?,
+        None => AnyVolume::from(crate::demo::demo_volume()),
+    };
     let sample_type = volume.sample_type();
     let scene = match args.macrocell {
         Some(m) => Scene::with_macrocell(volume, m),
@@ -36,7 +39,12 @@ pub fn run(args: &RenderArgs) -> Result<(), Error> {
             )
         })?,
         (None, None) => {
-            TransferFunction::preset("ramp", sample_type).ok_or("ramp preset missing")?
+            let name = if args.file.is_some() {
+                "ramp"
+            } else {
+                crate::demo::DEMO_TF
+            };
+            TransferFunction::preset(name, sample_type).ok_or("built-in preset missing")?
         }
     };
 

@@ -214,13 +214,13 @@ mod tests {
                 let x = i as u32 / (n.y * n.z);
                 glam::IVec3::new(x as i32, y as i32, z as i32)
             };
-            for i in 0..len {
+            for (i, &got) in d.iter().enumerate() {
                 let want = (0..len)
                     .filter(|&j| occ[j])
                     .map(|j| (pos(i) - pos(j)).abs().max_element() as u32)
                     .min()
                     .map_or(255, |v| v.min(255)) as u8;
-                assert_eq!(d[i], want, "cell {i} of {n}");
+                assert_eq!(got, want, "cell {i} of {n}");
             }
         }
     }

@@ -322,7 +322,8 @@ mod tests {
     #[test]
     fn every_bad_header_case_is_a_typed_error() {
         use FormatError::*;
-        let cases: Vec<(Vec<u8>, fn(&FormatError) -> bool)> = vec![
+        type Check = fn(&FormatError) -> bool;
+        let cases: Vec<(Vec<u8>, Check)> = vec![
             (vec![1, 2, 3], |e| {
                 matches!(e, TooShortForHeader { found: 3, .. })
             }),

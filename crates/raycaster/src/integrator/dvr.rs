@@ -60,31 +60,62 @@ impl DvrState {
             } else {
                 k1
             };
-            while k < run_end {
-                let p = seg.pos(k);
-                let v = ctx.volume.sample(p);
-                taken += 1;
-                k += 1;
-                let e = ctx.lut.lookup(v);
-                if e.w <= 0.0 {
-                    continue;
-                }
-                let mut rgb = e.truncate();
-                if let Some(ph) = &ctx.shading
-                    && let Some((diffuse, spec)) = ph.terms(ctx.volume.gradient(p), seg.world_dir)
-                {
-                    rgb = rgb * diffuse + Vec3::splat(e.w * spec);
-                }
-                let w = 1.0 - self.alpha;
-                self.color += w * rgb;
-                self.alpha += w * e.w;
-                if self.alpha >= threshold {
-                    self.terminated = true;
-                    break;
-                }
+            let (taken_here, done) = self.march(ctx, seg, k, run_end, threshold);
+            taken += taken_here;
+            k = run_end;
+            if done {
+                self.terminated = true;
             }
         }
         taken
+    }
+
+    /// Samples `k..end` one by one. Kept apart from the skipping logic and
+    /// working on local copies of the state, so the hot loop keeps everything
+    /// in registers. Returns (samples taken, terminated).
+    #[inline(always)]
+    fn march<V: Volume>(
+        &mut self,
+        ctx: &FrameContext<'_, V>,
+        seg: &RaySegment,
+        k: u32,
+        end: u32,
+        threshold: f32,
+    ) -> (u64, bool) {
+        let volume = ctx.volume;
+        let lut = ctx.lut;
+        let shading = ctx.shading;
+        let (origin, dir, t_in, step) = (seg.origin, seg.dir, seg.t_in, seg.step);
+        let mut color = self.color;
+        let mut alpha = self.alpha;
+        let mut done = false;
+        let start = k;
+        let mut k = k;
+        while k < end {
+            let p = origin + dir * (t_in + k as f32 * step);
+            k += 1;
+            let v = volume.sample(p);
+            let e = lut.lookup(v);
+            if e.w <= 0.0 {
+                continue;
+            }
+            let mut rgb = e.truncate();
+            if let Some(ph) = &shading
+                && let Some((diffuse, spec)) = ph.terms(volume.gradient(p), seg.world_dir)
+            {
+                rgb = rgb * diffuse + Vec3::splat(e.w * spec);
+            }
+            let w = 1.0 - alpha;
+            color += w * rgb;
+            alpha += w * e.w;
+            if alpha >= threshold {
+                done = true;
+                break;
+            }
+        }
+        self.color = color;
+        self.alpha = alpha;
+        ((k - start) as u64, done)
     }
 
     /// Composites `n` samples of the constant value `v` in closed form: with

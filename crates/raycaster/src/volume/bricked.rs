@@ -4,8 +4,8 @@
 use glam::{UVec3, Vec3};
 
 use super::{
-    Grid, Layout, Volume, clamped_gradient, interior_gradient, split_coord, stencil_inside,
-    trilinear,
+    Grid, Layout, Volume, cell_value_ranges_by_rows, clamped_gradient, interior_gradient,
+    split_coord, stencil_inside, trilinear,
 };
 use crate::error::{Error, Result};
 use crate::sample::Sample;
@@ -288,6 +288,22 @@ impl<S: Sample> Volume for BrickedVolume<S> {
     }
 
     fn preferred_macrocell(&self) -> u32 {
-        self.bricks.side - 1
+        8
+    }
+
+    fn cell_value_ranges(&self, cell: u32, count: UVec3) -> Vec<(f32, f32)> {
+        let data = self.data.as_slice();
+        let b = self.bricks.side as usize;
+        let step = b - 1;
+        cell_value_ranges_by_rows(self.grid.dims, cell, count, |x, y, row: &mut [S]| {
+            // The row's pieces, one per brick along z, overlap by one voxel.
+            let base = self.offset[0][x as usize] + self.offset[1][y as usize];
+            for (k, chunk) in row.chunks_mut(step).enumerate() {
+                // Through the table: the grid's last plane may sit at the
+                // far face of the last brick rather than open a new one.
+                let start = base + self.offset[2][k * step];
+                chunk.copy_from_slice(&data[start..start + chunk.len()]);
+            }
+        })
     }
 }

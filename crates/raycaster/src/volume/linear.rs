@@ -3,8 +3,8 @@
 use glam::{UVec3, Vec3};
 
 use super::{
-    Grid, Layout, Volume, clamped_gradient, fold_range, interior_gradient, split_coord,
-    stencil_inside, trilinear,
+    Grid, Layout, Volume, cell_value_ranges_by_rows, clamped_gradient, fold_range,
+    interior_gradient, split_coord, stencil_inside, trilinear,
 };
 use crate::error::{Error, Result};
 use crate::sample::Sample;
@@ -161,62 +161,12 @@ impl<S: Sample> Volume for LinearVolume<S> {
         8
     }
 
-    /// One streaming pass: each x-slab of cells folds its voxel rows
-    /// element-wise into per-(cell row, z) accumulators (vectorised min/max
-    /// over contiguous rows), then reduces the z windows.
     fn cell_value_ranges(&self, cell: u32, count: UVec3) -> Vec<(f32, f32)> {
-        use rayon::prelude::*;
-        let d = self.grid.dims;
-        let (ny, nz) = (count.y as usize, count.z as usize);
-        let zlen = d.z as usize;
+        let z = self.grid.dims.z as usize;
         let data = self.data.as_slice();
-        let mut ranges = vec![(0.0f32, 0.0f32); count.x as usize * ny * nz];
-        ranges
-            .par_chunks_mut(ny * nz)
-            .enumerate()
-            .for_each(|(cx, slab)| {
-                let mut lo = vec![S::HIGHEST; ny * zlen];
-                let mut hi = vec![S::LOWEST; ny * zlen];
-                let x_end = (cx as u32 * cell + cell).min(d.x - 1);
-                for x in cx as u32 * cell..=x_end {
-                    for y in 0..d.y {
-                        let row = &data[self.index(UVec3::new(x, y, 0))..][..zlen];
-                        // Row y belongs to cell row y / cell, and also to the one
-                        // below when it lies on a shared plane.
-                        let c_hi = (y / cell).min(count.y - 1);
-                        let c_lo = if y >= cell {
-                            (y - cell).div_ceil(cell)
-                        } else {
-                            0
-                        };
-                        for cy in c_lo..=c_hi {
-                            let o = cy as usize * zlen;
-                            for ((l, h), &v) in lo[o..o + zlen]
-                                .iter_mut()
-                                .zip(&mut hi[o..o + zlen])
-                                .zip(row)
-                            {
-                                *l = l.min_of(v);
-                                *h = h.max_of(v);
-                            }
-                        }
-                    }
-                }
-                for cy in 0..ny {
-                    for cz in 0..nz {
-                        let z0 = cz * cell as usize;
-                        let z1 = (z0 + cell as usize).min(zlen - 1);
-                        let o = cy * zlen;
-                        let a = lo[o + z0..=o + z1]
-                            .iter()
-                            .fold(S::HIGHEST, |m, &v| m.min_of(v));
-                        let b = hi[o + z0..=o + z1]
-                            .iter()
-                            .fold(S::LOWEST, |m, &v| m.max_of(v));
-                        slab[cy * nz + cz] = (a.to_f32(), b.to_f32());
-                    }
-                }
-            });
-        ranges
+        cell_value_ranges_by_rows(self.grid.dims, cell, count, |x, y, row: &mut [S]| {
+            let start = self.index(UVec3::new(x, y, 0));
+            row.copy_from_slice(&data[start..start + z]);
+        })
     }
 }

@@ -151,6 +151,71 @@ pub(crate) fn stencil_inside(c: UVec3, dims: UVec3) -> bool {
     c.cmpge(UVec3::ONE).all() && (c + UVec3::splat(2)).cmplt(dims).all()
 }
 
+/// Macrocell value ranges in one streaming pass over rows of voxels along z.
+///
+/// Each x-slab of cells (in parallel) folds its voxel rows element-wise into
+/// per-(cell row, z) accumulators — min/max over whole rows, which vectorises
+/// — then reduces the z windows. `fill(x, y, row)` copies voxel row `(x, y)`
+/// (all z) into `row`.
+pub(crate) fn cell_value_ranges_by_rows<S: Sample>(
+    dims: UVec3,
+    cell: u32,
+    count: UVec3,
+    fill: impl Fn(u32, u32, &mut [S]) + Sync,
+) -> Vec<(f32, f32)> {
+    use rayon::prelude::*;
+    let (ny, nz) = (count.y as usize, count.z as usize);
+    let zlen = dims.z as usize;
+    let mut ranges = vec![(0.0f32, 0.0f32); count.x as usize * ny * nz];
+    ranges
+        .par_chunks_mut(ny * nz)
+        .enumerate()
+        .for_each(|(cx, slab)| {
+            let mut lo = vec![S::HIGHEST; ny * zlen];
+            let mut hi = vec![S::LOWEST; ny * zlen];
+            let mut row = vec![S::zeroed(); zlen];
+            let x_end = (cx as u32 * cell + cell).min(dims.x - 1);
+            for x in cx as u32 * cell..=x_end {
+                for y in 0..dims.y {
+                    fill(x, y, &mut row);
+                    // Row y belongs to cell rows c with c·cell <= y <= c·cell + cell.
+                    let c_hi = (y / cell).min(count.y - 1);
+                    let c_lo = if y >= cell {
+                        (y - cell).div_ceil(cell)
+                    } else {
+                        0
+                    };
+                    for cy in c_lo..=c_hi {
+                        let o = cy as usize * zlen;
+                        for ((l, h), &v) in lo[o..o + zlen]
+                            .iter_mut()
+                            .zip(&mut hi[o..o + zlen])
+                            .zip(&row)
+                        {
+                            *l = l.min_of(v);
+                            *h = h.max_of(v);
+                        }
+                    }
+                }
+            }
+            for cy in 0..ny {
+                for cz in 0..nz {
+                    let z0 = cz * cell as usize;
+                    let z1 = (z0 + cell as usize).min(zlen - 1);
+                    let o = cy * zlen;
+                    let a = lo[o + z0..=o + z1]
+                        .iter()
+                        .fold(S::HIGHEST, |m, &v| m.min_of(v));
+                    let b = hi[o + z0..=o + z1]
+                        .iter()
+                        .fold(S::LOWEST, |m, &v| m.max_of(v));
+                    slab[cy * nz + cz] = (a.to_f32(), b.to_f32());
+                }
+            }
+        });
+    ranges
+}
+
 /// Smallest and largest of the values yielded, as `f32`.
 pub(crate) fn fold_range<S: Sample>(values: impl Iterator<Item = S>) -> (S, S) {
     values.fold((S::HIGHEST, S::LOWEST), |(lo, hi), v| {
@@ -163,8 +228,11 @@ pub(crate) fn fold_range<S: Sample>(values: impl Iterator<Item = S>) -> (S, S) {
 /// upper neighbour `i + 1` is always inside the grid.
 #[inline(always)]
 pub(crate) fn split_coord(p: f32, max_coord: f32, last: u32) -> (u32, f32) {
-    let p = p.clamp(0.0, max_coord);
-    let i = (p as u32).min(last);
+    // `max`/`min` (not `clamp`) also turn NaN into 0. Dimensions are below
+    // 2^31, so the i32 conversion is exact; it is several instructions
+    // cheaper than a saturating f32 → u32 cast.
+    let p = p.max(0.0).min(max_coord);
+    let i = ((p as i32) as u32).min(last);
     (i, p - i as f32)
 }
 

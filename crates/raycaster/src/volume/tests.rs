@@ -93,7 +93,7 @@ fn value_ranges_agree_between_layouts() {
 }
 
 #[test]
-fn fast_linear_macrocell_ranges_equal_the_generic_ones() {
+fn fast_macrocell_ranges_equal_the_generic_ones() {
     for (dims, cell) in [
         (UVec3::new(23, 9, 31), 4),
         (UVec3::new(17, 17, 17), 8),

@@ -1,0 +1,42 @@
+//! The progress bar: bytes written, rate and ETA on stderr, hidden when stderr
+//! is not a terminal or with `--quiet`.
+
+use std::io::IsTerminal;
+
+use indicatif::{ProgressBar, ProgressDrawTarget, ProgressStyle};
+
+/// Progress of one volume being written.
+pub struct Progress {
+    bar: ProgressBar,
+}
+
+impl Progress {
+    /// A bar for `total` bytes; drawn only when `visible` and stderr is a terminal.
+    pub fn new(total: u64, visible: bool) -> Self {
+        let bar = ProgressBar::with_draw_target(Some(total), ProgressDrawTarget::hidden());
+        if visible && std::io::stderr().is_terminal() {
+            bar.set_draw_target(ProgressDrawTarget::stderr());
+            if let Ok(style) = ProgressStyle::with_template(
+                "{spinner} [{elapsed_precise}] {wide_bar} {bytes}/{total_bytes} {bytes_per_sec} ETA {eta}",
+            ) {
+                bar.set_style(style);
+            }
+        }
+        Progress { bar }
+    }
+
+    /// A bar that never draws.
+    pub fn hidden() -> Self {
+        Progress::new(0, false)
+    }
+
+    /// Records `bytes` more written.
+    pub fn advance(&self, bytes: u64) {
+        self.bar.inc(bytes);
+    }
+
+    /// Removes the bar from the terminal.
+    pub fn finish(&self) {
+        self.bar.finish_and_clear();
+    }
+}
