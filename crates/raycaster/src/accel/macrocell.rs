@@ -67,19 +67,34 @@ impl MacrocellGrid {
 /// Marks the cells whose 3×3×3 neighbourhood (clamped to the grid) holds one
 /// value, in three separable passes (z, then y, then x).
 fn uniform_cells(ranges: &[(f32, f32)], n: UVec3) -> Vec<bool> {
-    let (nx, ny, nz) = (n.x as usize, n.y as usize, n.z as usize);
-    let value = |i: usize| ranges[i].0;
+    let (ny, nz) = (n.y as usize, n.z as usize);
+    let total = ranges.len();
+    let value: Vec<f32> = ranges.iter().map(|r| r.0).collect();
     let mut cur: Vec<bool> = ranges.iter().map(|&(lo, hi)| lo == hi).collect();
-    for stride_len in [(1usize, nz), (nz, ny), (ny * nz, nx)] {
-        let (stride, len) = stride_len;
+    // Along each axis, a cell stays uniform when both neighbours on that
+    // axis (where they exist) were uniform with the same value. Within a
+    // group of lines (a row for z, a plane for y, the grid for x) the cells
+    // that have a lower neighbour form one contiguous range, as do their
+    // neighbours, so each sweep is a zip over two slices.
+    for (stride, len) in [(1usize, nz), (nz, ny), (ny * nz, n.x as usize)] {
+        if len < 2 {
+            continue;
+        }
         let prev = cur.clone();
-        for (i, u) in cur.iter_mut().enumerate() {
-            if !*u {
-                continue;
+        for g in (0..total).step_by(stride * len) {
+            let hi = g + stride * len;
+            let (upper, lower) = (g + stride..hi, g..hi - stride);
+            let pairs = value[upper.clone()].iter().zip(&value[lower.clone()]);
+            for ((c, &p), (a, b)) in cur[upper.clone()]
+                .iter_mut()
+                .zip(&prev[lower.clone()])
+                .zip(pairs.clone())
+            {
+                *c &= p && a == b;
             }
-            let pos = (i / stride) % len;
-            let same = |j: usize| prev[j] && value(j) == value(i);
-            *u = (pos == 0 || same(i - stride)) && (pos + 1 == len || same(i + stride));
+            for ((c, &p), (a, b)) in cur[lower].iter_mut().zip(&prev[upper]).zip(pairs) {
+                *c &= p && a == b;
+            }
         }
     }
     cur

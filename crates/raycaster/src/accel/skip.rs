@@ -130,69 +130,84 @@ impl SkipGrid {
 /// others must hold `u8::MAX` on entry. Two raster passes with the 26-neighbour
 /// chamfer mask of unit weights, which is exact for the chessboard metric.
 fn chessboard_distance(d: &mut [u8], n: UVec3) {
-    // Work on a copy padded by one never-source cell per face, so the
-    // neighbour loop needs no bounds tests.
     let (nx, ny, nz) = (n.x as usize, n.y as usize, n.z as usize);
-    let (py, pz) = (ny + 2, nz + 2);
-    let mut pad = vec![u8::MAX; (nx + 2) * py * pz];
-    let at = |x: usize, y: usize, z: usize| (x * py + y) * pz + z;
-    for x in 0..nx {
-        for y in 0..ny {
-            let src = (x * ny + y) * nz;
-            let dst = at(x + 1, y + 1, 1);
-            pad[dst..dst + nz].copy_from_slice(&d[src..src + nz]);
-        }
-    }
-    let offsets: [usize; 13] =
-        HALF_MASK.map(|(dx, dy, dz)| ((dx * py as i64 + dy) * pz as i64 + dz) as usize);
-    // Forward pass: neighbours at lower indices; backward: at higher ones.
-    for x in 1..=nx {
-        for y in 1..=ny {
-            let row = at(x, y, 0);
-            for i in row + 1..=row + nz {
-                if pad[i] != 0 {
-                    let m = offsets.iter().map(|&o| pad[i - o]).min().unwrap_or(u8::MAX);
-                    pad[i] = pad[i].min(m.saturating_add(1));
+    let row = |x: usize, y: usize| (x * ny + y) * nz;
+    let mut m = vec![0u8; nz];
+    let mut m3 = vec![0u8; nz];
+    // One raster pass. The mask neighbours in earlier rows (the 3×3 rows of
+    // the previous plane and the previous row of this plane, each at z − 1,
+    // z, z + 1) are final already, so their minimum is taken row-wise
+    // (vectorised); the neighbour at z ∓ 1 in the same row needs a
+    // sequential scan.
+    let mut pass = |forward: bool| {
+        let s: isize = if forward { 1 } else { -1 };
+        let xs: Vec<usize> = if forward {
+            (0..nx).collect()
+        } else {
+            (0..nx).rev().collect()
+        };
+        let ys: Vec<usize> = if forward {
+            (0..ny).collect()
+        } else {
+            (0..ny).rev().collect()
+        };
+        for &x in &xs {
+            for &y in &ys {
+                m.fill(u8::MAX);
+                let px = x as isize - s;
+                let py = y as isize - s;
+                let mut take = |r: usize, m: &mut [u8]| {
+                    min3(&d[r..r + nz], &mut m3);
+                    for (a, &b) in m.iter_mut().zip(&m3) {
+                        *a = (*a).min(b);
+                    }
+                };
+                if (0..nx as isize).contains(&px) {
+                    for dy in -1..=1isize {
+                        let qy = y as isize + dy;
+                        if (0..ny as isize).contains(&qy) {
+                            take(row(px as usize, qy as usize), &mut m);
+                        }
+                    }
+                }
+                if (0..ny as isize).contains(&py) {
+                    take(row(x, py as usize), &mut m);
+                }
+                let r = row(x, y);
+                let cells = &mut d[r..r + nz];
+                for (c, &v) in cells.iter_mut().zip(&m) {
+                    *c = (*c).min(v.saturating_add(1));
+                }
+                if forward {
+                    for z in 1..nz {
+                        cells[z] = cells[z].min(cells[z - 1].saturating_add(1));
+                    }
+                } else {
+                    for z in (0..nz.saturating_sub(1)).rev() {
+                        cells[z] = cells[z].min(cells[z + 1].saturating_add(1));
+                    }
                 }
             }
         }
-    }
-    for x in (1..=nx).rev() {
-        for y in (1..=ny).rev() {
-            let row = at(x, y, 0);
-            for i in (row + 1..=row + nz).rev() {
-                if pad[i] != 0 {
-                    let m = offsets.iter().map(|&o| pad[i + o]).min().unwrap_or(u8::MAX);
-                    pad[i] = pad[i].min(m.saturating_add(1));
-                }
-            }
-        }
-    }
-    for x in 0..nx {
-        for y in 0..ny {
-            let dst = (x * ny + y) * nz;
-            let src = at(x + 1, y + 1, 1);
-            d[dst..dst + nz].copy_from_slice(&pad[src..src + nz]);
-        }
-    }
+    };
+    pass(true);
+    pass(false);
 }
 
-/// Offsets of the neighbours that precede a cell in x-major, z-fastest order.
-const HALF_MASK: [(i64, i64, i64); 13] = [
-    (1, -1, -1),
-    (1, -1, 0),
-    (1, -1, 1),
-    (1, 0, -1),
-    (1, 0, 0),
-    (1, 0, 1),
-    (1, 1, -1),
-    (1, 1, 0),
-    (1, 1, 1),
-    (0, 1, -1),
-    (0, 1, 0),
-    (0, 1, 1),
-    (0, 0, 1),
-];
+/// `out[z] = min(row[z − 1], row[z], row[z + 1])`, ignoring missing neighbours.
+fn min3(row: &[u8], out: &mut [u8]) {
+    out.copy_from_slice(row);
+    let n = row.len();
+    if n < 2 {
+        return;
+    }
+    for (o, &v) in out[..n - 1].iter_mut().zip(&row[1..]) {
+        *o = (*o).min(v);
+    }
+    for (o, &v) in out[1..].iter_mut().zip(&row[..n - 1]) {
+        *o = (*o).min(v);
+    }
+}
 
 #[cfg(test)]
 mod tests {

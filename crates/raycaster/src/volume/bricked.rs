@@ -4,8 +4,8 @@
 use glam::{UVec3, Vec3};
 
 use super::{
-    Grid, Layout, Volume, cell_value_ranges_by_rows, clamped_gradient, interior_gradient,
-    split_coord, stencil_inside, trilinear,
+    Grid, Layout, Volume, cell_value_ranges_by_rows, clamped_gradient, split_coord,
+    stencil_gradient, stencil_inside, trilinear,
 };
 use crate::error::{Error, Result};
 use crate::sample::Sample;
@@ -182,19 +182,19 @@ impl<S: Sample> BrickedVolume<S> {
         self.data.as_slice()
     }
 
-    /// Base indices of the cells at `c ± 1` along x, y, z (see [`interior_gradient`]).
+    /// Storage offsets of coordinates `c − 1 ..= c + 2` per axis (see
+    /// [`stencil_gradient`]). A voxel on a shared brick face may come from
+    /// either brick: both copies hold the same value.
     #[inline(always)]
-    fn stencil_bases(&self, c: UVec3) -> [usize; 6] {
-        let o = &self.offset;
-        let (x, y, z) = (c.x as usize, c.y as usize, c.z as usize);
-        let (ox, oy, oz) = (o[0][x], o[1][y], o[2][z]);
+    fn stencil_offsets(&self, c: UVec3) -> [[usize; 4]; 3] {
+        let row = |t: &[usize], c: u32| {
+            let c = c as usize;
+            [t[c - 1], t[c], t[c + 1], t[c + 2]]
+        };
         [
-            o[0][x + 1] + oy + oz,
-            o[0][x - 1] + oy + oz,
-            ox + o[1][y + 1] + oz,
-            ox + o[1][y - 1] + oz,
-            ox + oy + o[2][z + 1],
-            ox + oy + o[2][z - 1],
+            row(&self.offset[0], c.x),
+            row(&self.offset[1], c.y),
+            row(&self.offset[2], c.z),
         ]
     }
 
@@ -249,11 +249,12 @@ impl<S: Sample> Volume for BrickedVolume<S> {
         if !stencil_inside(c, self.grid.dims) {
             return clamped_gradient(self, p);
         }
-        let bases = self.stencil_bases(c);
-        interior_gradient(
+        let [xo, yo, zo] = self.stencil_offsets(c);
+        stencil_gradient(
             self.data.as_slice(),
-            bases,
-            self.stride,
+            xo,
+            yo,
+            zo,
             Vec3::new(fx, fy, fz),
             self.inv_two_spacing,
         )

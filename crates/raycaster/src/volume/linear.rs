@@ -3,8 +3,8 @@
 use glam::{UVec3, Vec3};
 
 use super::{
-    Grid, Layout, Volume, cell_value_ranges_by_rows, clamped_gradient, fold_range,
-    interior_gradient, split_coord, stencil_inside, trilinear,
+    Grid, Layout, Volume, cell_value_ranges_by_rows, clamped_gradient, fold_range, split_coord,
+    stencil_gradient, stencil_inside, trilinear,
 };
 use crate::error::{Error, Result};
 use crate::sample::Sample;
@@ -68,19 +68,17 @@ impl<S: Sample> LinearVolume<S> {
         self.data.as_slice()
     }
 
-    /// Base indices of the cells at `c ± 1` along x, y, z (see [`interior_gradient`]).
+    /// Storage offsets of coordinates `c − 1 ..= c + 2` per axis (see
+    /// [`stencil_gradient`]).
     #[inline(always)]
-    fn stencil_bases(&self, c: UVec3) -> [usize; 6] {
-        let base = self.index(c);
-        let [sx, sy, sz] = self.stride;
-        [
-            base + sx,
-            base - sx,
-            base + sy,
-            base - sy,
-            base + sz,
-            base - sz,
-        ]
+    fn stencil_offsets(&self, c: UVec3) -> [[usize; 4]; 3] {
+        let d = self.grid.dims;
+        let (sx, sy) = (d.y as usize * d.z as usize, d.z as usize);
+        let row = |c: u32, s: usize| {
+            let b = (c as usize - 1) * s;
+            [b, b + s, b + 2 * s, b + 3 * s]
+        };
+        [row(c.x, sx), row(c.y, sy), row(c.z, 1)]
     }
 
     #[inline(always)]
@@ -133,11 +131,12 @@ impl<S: Sample> Volume for LinearVolume<S> {
         if !stencil_inside(c, self.grid.dims) {
             return clamped_gradient(self, p);
         }
-        let bases = self.stencil_bases(c);
-        interior_gradient(
+        let [xo, yo, zo] = self.stencil_offsets(c);
+        stencil_gradient(
             self.data.as_slice(),
-            bases,
-            self.stride,
+            xo,
+            yo,
+            zo,
             Vec3::new(fx, fy, fz),
             self.inv_two_spacing,
         )
