@@ -732,9 +732,10 @@ fn ess_changes_no_iso_hit_on_random_rays() {
 /// value 178.5) is past the surface.
 #[test]
 fn iso_with_ess_finds_a_crossing_right_after_the_first_sample() {
-    let scene = Scene::new(u8_volume([17, 17, 17], Vec3::ONE, |v| {
-        if v.x <= 8 { 0 } else { 255 }
-    }));
+    let scene = Scene::with_macrocell(
+        u8_volume([17, 17, 17], Vec3::ONE, |v| if v.x <= 8 { 0 } else { 255 }),
+        8,
+    );
     assert_eq!(scene.macrocells().cell, 8);
     let tf = TransferFunction::preset("ramp", SampleType::U8).unwrap();
     let lab = RayLab::iso(&scene, &tf, 1.0, 128.0);

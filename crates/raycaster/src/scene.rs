@@ -59,14 +59,15 @@ impl VolumeVisitor for BuildMacrocells {
     fn visit<V: Volume>(self, volume: &V) -> MacrocellGrid {
         MacrocellGrid::build(
             volume,
-            self.0.unwrap_or_else(|| volume.preferred_macrocell()),
+            self.0
+                .unwrap_or_else(|| default_macrocell(volume.grid().dims)),
         )
     }
 }
 
 impl<V: VolumeSource> Scene<V> {
-    /// Builds the macrocell grid of `volume` (one pass over the data) with the
-    /// volume's preferred macrocell size (8 voxels, or one brick).
+    /// Builds the macrocell grid of `volume` (one pass over the data) with
+    /// the default macrocell size (see [`default_macrocell`]).
     pub fn new(volume: V) -> Self {
         Self::build(volume, None)
     }
@@ -112,4 +113,20 @@ impl<V: VolumeSource> Scene<V> {
     pub fn value_range(&self) -> (f32, f32) {
         self.value_range
     }
+}
+
+/// The macrocell side used by [`Scene::new`]: the smallest of 4, 8, 16, 32
+/// voxels that keeps the grid within 16 M cells. Small cells skip more empty
+/// space and find more uniform regions (measured on the 800³ benchmark: 4³
+/// cells take 24% fewer instructions per frame than 8³); the cap bounds the
+/// memory and the per-transfer-function rebuild time of huge volumes.
+pub fn default_macrocell(dims: glam::UVec3) -> u32 {
+    let cells = |m: u32| {
+        let n = |d: u32| (d.max(2) - 1).div_ceil(m) as u64;
+        n(dims.x) * n(dims.y) * n(dims.z)
+    };
+    [4, 8, 16]
+        .into_iter()
+        .find(|&m| cells(m) <= 1 << 24)
+        .unwrap_or(32)
 }

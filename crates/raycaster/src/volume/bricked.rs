@@ -288,10 +288,6 @@ impl<S: Sample> Volume for BrickedVolume<S> {
         acc
     }
 
-    fn preferred_macrocell(&self) -> u32 {
-        8
-    }
-
     fn cell_value_ranges(&self, cell: u32, count: UVec3) -> Vec<(f32, f32)> {
         let data = self.data.as_slice();
         let b = self.bricks.side as usize;

@@ -156,10 +156,6 @@ impl<S: Sample> Volume for LinearVolume<S> {
         acc
     }
 
-    fn preferred_macrocell(&self) -> u32 {
-        8
-    }
-
     fn cell_value_ranges(&self, cell: u32, count: UVec3) -> Vec<(f32, f32)> {
         let z = self.grid.dims.z as usize;
         let data = self.data.as_slice();

@@ -72,9 +72,6 @@ pub trait Volume: Send + Sync {
     /// (clamped to the grid).
     fn value_range(&self, lo: UVec3, hi: UVec3) -> (Self::Sample, Self::Sample);
 
-    /// The macrocell side (in voxels) that suits this layout.
-    fn preferred_macrocell(&self) -> u32;
-
     /// The value range of every macrocell of side `cell` (cell `c` covers
     /// voxels `c·cell ..= c·cell + cell` per axis), `count` cells per axis,
     /// x slowest and z fastest, on the threads of the current rayon pool.
@@ -228,33 +225,95 @@ pub(crate) fn cell_value_ranges_by_rows<S: Sample>(
                     };
                     for cy in c_lo..=c_hi {
                         let o = cy as usize * zlen;
-                        for ((l, h), &v) in lo[o..o + zlen]
-                            .iter_mut()
-                            .zip(&mut hi[o..o + zlen])
-                            .zip(&row)
-                        {
-                            *l = l.min_of(v);
-                            *h = h.max_of(v);
-                        }
+                        fold_row(&mut lo[o..o + zlen], &mut hi[o..o + zlen], &row);
                     }
                 }
             }
+            let m = cell as usize;
+            let mut wlo = vec![S::HIGHEST; zlen];
+            let mut whi = vec![S::LOWEST; zlen];
+            let mut tmp = vec![S::HIGHEST; zlen];
             for cy in 0..ny {
-                for cz in 0..nz {
-                    let z0 = cz * cell as usize;
-                    let z1 = (z0 + cell as usize).min(zlen - 1);
-                    let o = cy * zlen;
-                    let a = lo[o + z0..=o + z1]
-                        .iter()
-                        .fold(S::HIGHEST, |m, &v| m.min_of(v));
-                    let b = hi[o + z0..=o + z1]
-                        .iter()
-                        .fold(S::LOWEST, |m, &v| m.max_of(v));
-                    slab[cy * nz + cz] = (a.to_f32(), b.to_f32());
+                // Window minima of length m + 1 at every z, by doubling
+                // (vectorised passes over the row), then one per cell.
+                window_extreme(
+                    &lo[cy * zlen..][..zlen],
+                    m + 1,
+                    &mut wlo,
+                    &mut tmp,
+                    |a, b| a.min_of(b),
+                );
+                window_extreme(
+                    &hi[cy * zlen..][..zlen],
+                    m + 1,
+                    &mut whi,
+                    &mut tmp,
+                    |a, b| a.max_of(b),
+                );
+                for (cz, out) in slab[cy * nz..][..nz].iter_mut().enumerate() {
+                    let z0 = cz * m;
+                    *out = (wlo[z0].to_f32(), whi[z0].to_f32());
                 }
             }
         });
     ranges
+}
+
+/// `out[z] = op(row[z], …, row[z + len − 1])`, with the window cut at the
+/// row's end. Doubling: windows of 1, 2, 4, … elements, each pass one
+/// element-wise operation over shifted slices (vectorised), then one more
+/// pass to reach exactly `len`.
+fn window_extreme<S: Sample>(
+    row: &[S],
+    len: usize,
+    out: &mut [S],
+    tmp: &mut [S],
+    op: impl Fn(S, S) -> S + Copy,
+) {
+    let n = row.len();
+    let (out, tmp) = (&mut out[..n], &mut tmp[..n]);
+    out.copy_from_slice(row);
+    let mut have = 1;
+    while have * 2 <= len && have < n {
+        // out holds windows of `have`; combine with the window `have` ahead.
+        tmp.copy_from_slice(out);
+        for ((o, &a), &b) in out[..n - have]
+            .iter_mut()
+            .zip(&tmp[..n - have])
+            .zip(&tmp[have..])
+        {
+            *o = op(a, b);
+        }
+        have *= 2;
+    }
+    if have < len && n > 1 {
+        // Windows of `have` at i and at i + len − have cover [i, i + len).
+        let shift = (len - have).min(n - 1);
+        tmp.copy_from_slice(out);
+        for ((o, &a), &b) in out[..n - shift]
+            .iter_mut()
+            .zip(&tmp[..n - shift])
+            .zip(&tmp[shift..])
+        {
+            *o = op(a, b);
+        }
+        let last = tmp[n - 1];
+        for o in &mut out[n - shift..] {
+            *o = op(*o, last);
+        }
+    }
+}
+
+/// Element-wise `lo = min(lo, row)`, `hi = max(hi, row)`; written with
+/// equal-length slices and indices so that it vectorises.
+#[inline(always)]
+fn fold_row<S: Sample>(lo: &mut [S], hi: &mut [S], row: &[S]) {
+    let n = row.len().min(lo.len()).min(hi.len());
+    let (lo, hi, row) = (&mut lo[..n], &mut hi[..n], &row[..n]);
+    for i in 0..n {
+        lo[i] = lo[i].min_of(row[i]);
+        hi[i] = hi[i].max_of(row[i]);
+    }
 }
 
 /// Smallest and largest of the values yielded, as `f32`.
