@@ -278,6 +278,8 @@ pub struct TfLut {
     tf: TransferFunction,
     lo: f32,
     scale: f32,
+    /// `entries.len() − 2`: the largest position.
+    max_position: f32,
     linear: bool,
     step: f32,
 }
@@ -333,6 +335,7 @@ impl TfLut {
             count += v as u32;
             visible_prefix.push(count);
         }
+        let entries_len = entries.len();
         TfLut {
             entries,
             exact,
@@ -340,6 +343,7 @@ impl TfLut {
             tf: tf.clone(),
             lo,
             scale,
+            max_position: (entries_len - 2) as f32,
             linear,
             step,
         }
@@ -353,14 +357,25 @@ impl TfLut {
     /// Position of value `v` in node units (node 0 = below the span).
     #[inline(always)]
     fn position(&self, v: f32) -> f32 {
-        ((v - self.lo) * self.scale + 1.0).clamp(0.0, (self.entries.len() - 2) as f32)
+        // max/min rather than clamp: NaN becomes 0 (see `index`).
+        ((v - self.lo) * self.scale + 1.0)
+            .max(0.0)
+            .min(self.max_position)
+    }
+
+    /// The entry index of a position from [`TfLut::position`].
+    #[inline(always)]
+    fn index(x: f32) -> usize {
+        // SAFETY: `position` returns a value in [0, entries.len() − 2] (NaN
+        // mapped to 0), so the truncation is representable.
+        unsafe { x.to_int_unchecked::<u32>() as usize }
     }
 
     /// Premultiplied, step-corrected `(α·r, α·g, α·b, α)` at value `v`.
     #[inline(always)]
     pub fn lookup(&self, v: f32) -> Vec4 {
         let x = self.position(v);
-        let i = x as usize;
+        let i = Self::index(x);
         if self.exact[i] {
             return self.exact_lookup(v);
         }
@@ -384,8 +399,8 @@ impl TfLut {
     /// [`TfLut::lookup`] by construction.
     #[inline]
     pub fn any_visible(&self, vmin: f32, vmax: f32) -> bool {
-        let a = self.position(vmin) as usize;
-        let b = self.position(vmax) as usize;
+        let a = Self::index(self.position(vmin));
+        let b = Self::index(self.position(vmax));
         self.visible_prefix[b + 1] > self.visible_prefix[a]
     }
 

@@ -1,6 +1,6 @@
 //! The min/max grid over macrocells.
 
-use crate::volume::Volume;
+use crate::volume::{Volume, cell_coord};
 use glam::{UVec3, Vec3};
 
 /// Value range per macrocell.
@@ -50,8 +50,13 @@ impl MacrocellGrid {
     /// The cell containing voxel-space point `p` (clamped to the grid).
     #[inline(always)]
     pub fn cell_of(&self, p: Vec3) -> UVec3 {
-        let c = (p.max(Vec3::ZERO) * (1.0 / self.cell as f32)).as_uvec3();
-        c.min(self.count - UVec3::ONE)
+        let q = p * (1.0 / self.cell as f32);
+        let last = self.count - UVec3::ONE;
+        UVec3::new(
+            cell_coord(q.x, last.x),
+            cell_coord(q.y, last.y),
+            cell_coord(q.z, last.z),
+        )
     }
 
     /// The smallest and largest value in the whole volume.

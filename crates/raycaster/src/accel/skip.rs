@@ -7,6 +7,7 @@ use glam::{UVec3, Vec3};
 
 use super::MacrocellGrid;
 use crate::geometry::Aabb;
+use crate::volume::cell_coord;
 
 /// The answer of [`SkipGrid::classify`].
 #[derive(Debug, Clone, Copy)]
@@ -109,9 +110,13 @@ impl SkipGrid {
     /// occupied (with its own box and its index in the macrocell grid).
     #[inline(always)]
     pub fn classify(&self, p: Vec3) -> CellClass {
-        let c = (p.max(Vec3::ZERO) * self.inv_cell)
-            .as_uvec3()
-            .min(self.count - UVec3::ONE);
+        let q = p * self.inv_cell;
+        let last = self.count - UVec3::ONE;
+        let c = UVec3::new(
+            cell_coord(q.x, last.x),
+            cell_coord(q.y, last.y),
+            cell_coord(q.z, last.z),
+        );
         let index = self.index(c);
         if self.occupied[index] {
             let lo = c.as_vec3() * self.cell;

@@ -1,10 +1,10 @@
 //! Direct volume rendering: front-to-back compositing with ERT and ESS.
 
-use glam::Vec3;
+use glam::{UVec3, Vec3};
 
 use super::{FrameContext, RaySegment};
 use crate::accel::CellClass;
-use crate::volume::Volume;
+use crate::volume::{Volume, interpolate, stencil_gradient};
 
 /// Accumulated colour (premultiplied) and opacity of a ray.
 #[derive(Debug, Clone, Copy, Default)]
@@ -91,19 +91,41 @@ impl DvrState {
         let mut done = false;
         let start = k;
         let mut k = k;
+        // Consecutive samples often fall in the same interpolation cell
+        // (several per voxel at fine steps): keep its corner values, and its
+        // gradient stencil once loaded, instead of re-reading the volume.
+        let inv_two_spacing = 0.5 / volume.grid().spacing;
+        let no_cell = UVec3::splat(u32::MAX);
+        let (mut cell, mut corners) = (no_cell, [0.0f32; 8]);
+        let (mut wings_cell, mut wings) = (no_cell, None);
         while k < end {
             let p = origin + dir * (t_in + k as f32 * step);
             k += 1;
-            let v = volume.sample(p);
-            let e = lut.lookup(v);
+            let at = volume.locate(p);
+            if at.cell != cell {
+                cell = at.cell;
+                corners = volume.corners(cell);
+            }
+            let e = lut.lookup(interpolate(&corners, at.frac));
             if e.w <= 0.0 {
                 continue;
             }
             let mut rgb = e.truncate();
-            if let Some(ph) = &shading
-                && let Some((diffuse, spec)) = ph.terms(volume.gradient(p), seg.world_dir)
-            {
-                rgb = rgb * diffuse + Vec3::splat(e.w * spec);
+            if let Some(ph) = &shading {
+                if wings_cell != cell {
+                    wings_cell = cell;
+                    // A stencil of 32 equal values (inside a homogeneous
+                    // region) has a zero gradient: no shading, no arithmetic.
+                    wings = volume.wings(cell).map(|w| (w, is_flat(&corners, &w)));
+                }
+                let g = match &wings {
+                    Some((_, true)) => Vec3::ZERO,
+                    Some((w, false)) => stencil_gradient(&corners, w, at.frac, inv_two_spacing),
+                    None => volume.gradient(p),
+                };
+                if let Some((diffuse, spec)) = ph.terms(g, seg.world_dir) {
+                    rgb = rgb * diffuse + Vec3::splat(e.w * spec);
+                }
             }
             let w = 1.0 - alpha;
             color += w * rgb;
@@ -156,4 +178,13 @@ impl DvrState {
         }
         count as u64
     }
+}
+
+/// True when every corner and wing value is the same.
+#[inline(always)]
+fn is_flat(c: &[f32; 8], w: &[f32; 24]) -> bool {
+    let v = c[0];
+    c.iter()
+        .chain(w.iter())
+        .fold(true, |all, &x| all & (x == v))
 }

@@ -3,8 +3,8 @@
 use glam::{UVec3, Vec3};
 
 use super::{
-    Grid, Layout, Volume, cell_value_ranges_by_rows, clamped_gradient, fold_range, split_coord,
-    stencil_gradient, stencil_inside, trilinear,
+    CellPos, Corners, Grid, Layout, Volume, Wings, cell_value_ranges_by_rows, fold_range,
+    load_corners, load_wings, split_coord, stencil_inside,
 };
 use crate::error::{Error, Result};
 use crate::sample::Sample;
@@ -19,7 +19,6 @@ pub struct LinearVolume<S: Sample> {
     stride: [usize; 3],
     max_coord: Vec3,
     last: UVec3,
-    inv_two_spacing: Vec3,
 }
 
 impl<S: Sample> LinearVolume<S> {
@@ -40,7 +39,6 @@ impl<S: Sample> LinearVolume<S> {
         Ok(LinearVolume {
             stride: [step(d.x, d.y * d.z), step(d.y, d.z), step(d.z, 1)],
             max_coord: grid.max_coord(),
-            inv_two_spacing: 0.5 / grid.spacing,
             last: grid.last_cell(),
             grid,
             data,
@@ -69,7 +67,7 @@ impl<S: Sample> LinearVolume<S> {
     }
 
     /// Storage offsets of coordinates `c − 1 ..= c + 2` per axis (see
-    /// [`stencil_gradient`]).
+    /// [`load_wings`]).
     #[inline(always)]
     fn stencil_offsets(&self, c: UVec3) -> [[usize; 4]; 3] {
         let d = self.grid.dims;
@@ -109,37 +107,28 @@ impl<S: Sample> Volume for LinearVolume<S> {
     }
 
     #[inline(always)]
-    fn sample(&self, p: Vec3) -> f32 {
+    fn locate(&self, p: Vec3) -> CellPos {
         let (x, fx) = split_coord(p.x, self.max_coord.x, self.last.x);
         let (y, fy) = split_coord(p.y, self.max_coord.y, self.last.y);
         let (z, fz) = split_coord(p.z, self.max_coord.z, self.last.z);
-        let base = self.index(UVec3::new(x, y, z));
-        trilinear(
-            self.data.as_slice(),
-            base,
-            self.stride,
-            Vec3::new(fx, fy, fz),
-        )
+        CellPos {
+            cell: UVec3::new(x, y, z),
+            frac: Vec3::new(fx, fy, fz),
+        }
     }
 
     #[inline(always)]
-    fn gradient(&self, p: Vec3) -> Vec3 {
-        let (x, fx) = split_coord(p.x, self.max_coord.x, self.last.x);
-        let (y, fy) = split_coord(p.y, self.max_coord.y, self.last.y);
-        let (z, fz) = split_coord(p.z, self.max_coord.z, self.last.z);
-        let c = UVec3::new(x, y, z);
-        if !stencil_inside(c, self.grid.dims) {
-            return clamped_gradient(self, p);
+    fn corners(&self, cell: UVec3) -> Corners {
+        load_corners(self.data.as_slice(), self.index(cell), self.stride)
+    }
+
+    #[inline(always)]
+    fn wings(&self, cell: UVec3) -> Option<Wings> {
+        if !stencil_inside(cell, self.grid.dims) {
+            return None;
         }
-        let [xo, yo, zo] = self.stencil_offsets(c);
-        stencil_gradient(
-            self.data.as_slice(),
-            xo,
-            yo,
-            zo,
-            Vec3::new(fx, fy, fz),
-            self.inv_two_spacing,
-        )
+        let [xo, yo, zo] = self.stencil_offsets(cell);
+        Some(load_wings(self.data.as_slice(), xo, yo, zo))
     }
 
     fn value_range(&self, lo: UVec3, hi: UVec3) -> (S, S) {

@@ -65,8 +65,24 @@ pub trait Volume: Send + Sync {
     /// The value of one voxel. `v` must be inside the grid (panics otherwise).
     fn voxel(&self, v: UVec3) -> Self::Sample;
 
+    /// The interpolation cell holding voxel-space position `p` (clamped onto
+    /// the grid) and the fractions of `p` inside it.
+    fn locate(&self, p: Vec3) -> CellPos;
+
+    /// The 8 voxel values at the corners of cell `cell` (from
+    /// [`Volume::locate`]), in [`Corners`] order.
+    fn corners(&self, cell: UVec3) -> Corners;
+
+    /// The 24 voxel values one step outside cell `cell` along each axis, for
+    /// the gradient (see [`Wings`]); `None` when they would leave the grid.
+    fn wings(&self, cell: UVec3) -> Option<Wings>;
+
     /// The trilinearly interpolated value at voxel-space position `p`.
-    fn sample(&self, p: Vec3) -> f32;
+    #[inline(always)]
+    fn sample(&self, p: Vec3) -> f32 {
+        let c = self.locate(p);
+        interpolate(&self.corners(c.cell), c.frac)
+    }
 
     /// Smallest and largest voxel value in the inclusive box `[lo, hi]`
     /// (clamped to the grid).
@@ -97,10 +113,154 @@ pub trait Volume: Send + Sync {
     /// Central-difference gradient of the interpolated field at voxel-space
     /// position `p`, in value units per world unit (SPEC §5). Differences are
     /// taken one voxel apart along each axis, clamped at the grid's faces.
-    #[inline]
+    #[inline(always)]
     fn gradient(&self, p: Vec3) -> Vec3 {
-        clamped_gradient(self, p)
+        let c = self.locate(p);
+        match self.wings(c.cell) {
+            Some(w) => {
+                stencil_gradient(&self.corners(c.cell), &w, c.frac, 0.5 / self.grid().spacing)
+            }
+            None => clamped_gradient(self, p),
+        }
     }
+}
+
+/// A voxel-space position split into the lower corner of its interpolation
+/// cell and the fractions past it (each in [0, 1]).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct CellPos {
+    /// Lower corner voxel of the cell.
+    pub cell: UVec3,
+    /// Position inside the cell.
+    pub frac: Vec3,
+}
+
+/// The 8 corner values of a cell: index `4i + 2j + k` holds voxel
+/// `(x + i, y + j, z + k)`.
+pub type Corners = [f32; 8];
+
+/// The 24 values around a cell that the gradient stencil adds to its corners:
+/// six groups of four, for `x − 1`, `x + 2`, `y − 1`, `y + 2`, `z − 1`,
+/// `z + 2`; inside a group the other two axes' offsets (0/1) count in
+/// x, y, z order, the later one fastest.
+pub type Wings = [f32; 24];
+
+/// Trilinear interpolation of `c` at fractions `f`.
+#[inline(always)]
+pub fn interpolate(c: &Corners, f: Vec3) -> f32 {
+    let lerp = |a: f32, b: f32, t: f32| a + (b - a) * t;
+    let c00 = lerp(c[0], c[1], f.z);
+    let c01 = lerp(c[2], c[3], f.z);
+    let c10 = lerp(c[4], c[5], f.z);
+    let c11 = lerp(c[6], c[7], f.z);
+    lerp(lerp(c00, c01, f.y), lerp(c10, c11, f.y), f.x)
+}
+
+/// The central-difference gradient (one voxel each way, value units per
+/// world unit) at fractions `f` inside a cell, from its corners and wings.
+///
+/// `f(p + eₓ) − f(p − eₓ)` is the interpolation, with p's fractions, of the
+/// cell one voxel further minus the cell one voxel back. Interpolating first
+/// over y and z gives four slab values `B(−1..=2)` along x, and
+/// `gx = lerp(B1, B2, fx) − lerp(B−1, B0, fx)`; likewise for y and z.
+#[inline(always)]
+pub fn stencil_gradient(c: &Corners, w: &Wings, f: Vec3, inv_two_spacing: Vec3) -> Vec3 {
+    let lerp = |a: f32, b: f32, t: f32| a + (b - a) * t;
+    let bi = |a: f32, b: f32, c: f32, d: f32, s: f32, t: f32| lerp(lerp(a, b, t), lerp(c, d, t), s);
+    let diff = |m: f32, s0: f32, s1: f32, p: f32, t: f32| lerp(s1, p, t) - lerp(m, s0, t);
+    // Slabs across x: bilinear in (y, z).
+    let x0 = bi(c[0], c[1], c[2], c[3], f.y, f.z);
+    let x1 = bi(c[4], c[5], c[6], c[7], f.y, f.z);
+    let xm = bi(w[0], w[1], w[2], w[3], f.y, f.z);
+    let xp = bi(w[4], w[5], w[6], w[7], f.y, f.z);
+    // Slabs across y: bilinear in (x, z).
+    let y0 = bi(c[0], c[1], c[4], c[5], f.x, f.z);
+    let y1 = bi(c[2], c[3], c[6], c[7], f.x, f.z);
+    let ym = bi(w[8], w[9], w[10], w[11], f.x, f.z);
+    let yp = bi(w[12], w[13], w[14], w[15], f.x, f.z);
+    // Slabs across z: bilinear in (x, y).
+    let z0 = bi(c[0], c[2], c[4], c[6], f.x, f.y);
+    let z1 = bi(c[1], c[3], c[5], c[7], f.x, f.y);
+    let zm = bi(w[16], w[17], w[18], w[19], f.x, f.y);
+    let zp = bi(w[20], w[21], w[22], w[23], f.x, f.y);
+    Vec3::new(
+        diff(xm, x0, x1, xp, f.x),
+        diff(ym, y0, y1, yp, f.y),
+        diff(zm, z0, z1, zp, f.z),
+    ) * inv_two_spacing
+}
+
+/// Loads a cell's corners from `base` with the strides to the x, y and z
+/// neighbours (a stride is 0 along an axis of size 1).
+#[inline(always)]
+pub(crate) fn load_corners<S: Sample>(data: &[S], base: usize, stride: [usize; 3]) -> Corners {
+    let [sx, sy, sz] = stride;
+    let last = base + sx + sy + sz;
+    // One bounds check for the whole cell instead of eight: the largest
+    // offset is `last`, every other one is a sub-sum of it.
+    assert!(last < data.len(), "cell outside the volume");
+    // SAFETY: the strides are non-negative, so each index below lies in
+    // `base..=last`, and `last < data.len()` was just checked.
+    let at = |i: usize| unsafe { data.get_unchecked(i) }.to_f32();
+    [
+        at(base),
+        at(base + sz),
+        at(base + sy),
+        at(base + sy + sz),
+        at(base + sx),
+        at(base + sx + sz),
+        at(base + sx + sy),
+        at(last),
+    ]
+}
+
+/// Loads a cell's wings given the storage offsets of coordinates
+/// `c − 1, c, c + 1, c + 2` along each axis (index = xo + yo + zo).
+#[inline(always)]
+pub(crate) fn load_wings<S: Sample>(
+    data: &[S],
+    xo: [usize; 4],
+    yo: [usize; 4],
+    zo: [usize; 4],
+) -> Wings {
+    let max = |o: [usize; 4]| o[0].max(o[1]).max(o[2]).max(o[3]);
+    // One bounds check for all 24 reads: every index is at most the sum of
+    // the per-axis maxima.
+    assert!(
+        max(xo) + max(yo) + max(zo) < data.len(),
+        "gradient stencil outside the volume"
+    );
+    // SAFETY: each index is xo[a] + yo[b] + zo[c] <= max(xo) + max(yo) +
+    // max(zo) < data.len(), checked just above.
+    let v = |a: usize, b: usize, c: usize| {
+        unsafe { data.get_unchecked(xo[a] + yo[b] + zo[c]) }.to_f32()
+    };
+    [
+        v(0, 1, 1),
+        v(0, 1, 2),
+        v(0, 2, 1),
+        v(0, 2, 2),
+        v(3, 1, 1),
+        v(3, 1, 2),
+        v(3, 2, 1),
+        v(3, 2, 2),
+        v(1, 0, 1),
+        v(1, 0, 2),
+        v(2, 0, 1),
+        v(2, 0, 2),
+        v(1, 3, 1),
+        v(1, 3, 2),
+        v(2, 3, 1),
+        v(2, 3, 2),
+        v(1, 1, 0),
+        v(1, 2, 0),
+        v(2, 1, 0),
+        v(2, 2, 0),
+        v(1, 1, 3),
+        v(1, 2, 3),
+        v(2, 1, 3),
+        v(2, 2, 3),
+    ]
 }
 
 /// The central-difference gradient of [`Volume::gradient`] for any position,
@@ -120,67 +280,6 @@ pub fn clamped_gradient<V: Volume + ?Sized>(volume: &V, p: Vec3) -> Vec3 {
         }
     }
     Vec3::from_array(out)
-}
-
-/// The same gradient when the stencil (voxels `x0 − 1 ..= x0 + 2` per axis)
-/// is inside the grid, from 32 voxel reads instead of six separate 8-voxel
-/// lookups.
-///
-/// The difference `f(p + eₓ) − f(p − eₓ)` is the trilinear interpolation,
-/// with p's fractions, of the cell one voxel further minus the cell one voxel
-/// back. Interpolating first over y and z gives four slab values `B(−1..=2)`
-/// along x, and `gx = lerp(B1, B2, fx) − lerp(B−1, B0, fx)`; likewise for y
-/// and z. `xo`, `yo`, `zo` are the storage offsets of coordinates
-/// `c − 1, c, c + 1, c + 2` along each axis (index = xo + yo + zo).
-#[inline(always)]
-pub(crate) fn stencil_gradient<S: Sample>(
-    data: &[S],
-    xo: [usize; 4],
-    yo: [usize; 4],
-    zo: [usize; 4],
-    f: Vec3,
-    inv_two_spacing: Vec3,
-) -> Vec3 {
-    let max = |o: [usize; 4]| o[0].max(o[1]).max(o[2]).max(o[3]);
-    // One bounds check for all 32 reads: every index is at most the sum of
-    // the per-axis maxima.
-    assert!(
-        max(xo) + max(yo) + max(zo) < data.len(),
-        "gradient stencil outside the volume"
-    );
-    // SAFETY: each index is xo[a] + yo[b] + zo[c] <= max(xo) + max(yo) +
-    // max(zo) < data.len(), checked just above.
-    let v = |a: usize, b: usize, c: usize| {
-        unsafe { data.get_unchecked(xo[a] + yo[b] + zo[c]) }.to_f32()
-    };
-    let lerp = |a: f32, b: f32, t: f32| a + (b - a) * t;
-    // Bilinear over (y, z) of the x = a slab, over (x, z) of y = b, (x, y) of z = c.
-    let slab_x = |a: usize| {
-        lerp(
-            lerp(v(a, 1, 1), v(a, 1, 2), f.z),
-            lerp(v(a, 2, 1), v(a, 2, 2), f.z),
-            f.y,
-        )
-    };
-    let slab_y = |b: usize| {
-        lerp(
-            lerp(v(1, b, 1), v(1, b, 2), f.z),
-            lerp(v(2, b, 1), v(2, b, 2), f.z),
-            f.x,
-        )
-    };
-    let slab_z = |c: usize| {
-        lerp(
-            lerp(v(1, 1, c), v(1, 2, c), f.y),
-            lerp(v(2, 1, c), v(2, 2, c), f.y),
-            f.x,
-        )
-    };
-    let diff = |s: [f32; 4], t: f32| lerp(s[2], s[3], t) - lerp(s[0], s[1], t);
-    let gx = diff([slab_x(0), slab_x(1), slab_x(2), slab_x(3)], f.x);
-    let gy = diff([slab_y(0), slab_y(1), slab_y(2), slab_y(3)], f.y);
-    let gz = diff([slab_z(0), slab_z(1), slab_z(2), slab_z(3)], f.z);
-    Vec3::new(gx, gy, gz) * inv_two_spacing
 }
 
 /// True when the gradient stencil around cell `c` is inside a grid of `dims`.
@@ -323,46 +422,28 @@ pub(crate) fn fold_range<S: Sample>(values: impl Iterator<Item = S>) -> (S, S) {
     })
 }
 
+/// Truncates `v` (any float, NaN included) to an integer coordinate in
+/// `0..=last`, without the fix-ups of a checked float-to-int cast.
+#[inline(always)]
+pub fn cell_coord(v: f32, last: u32) -> u32 {
+    let v = v.max(0.0).min(last as f32);
+    // SAFETY: after `max`/`min` (which map NaN to 0), `v` is in
+    // [0, last] with `last` < 2^31, so the truncation is representable.
+    unsafe { v.to_int_unchecked::<i32>() as u32 }
+}
+
 /// Splits a clamped voxel-space coordinate into the lower corner of its cell
 /// and the fraction past it. `last` is `dim − 2` (0 when `dim == 1`), so the
 /// upper neighbour `i + 1` is always inside the grid.
 #[inline(always)]
 pub(crate) fn split_coord(p: f32, max_coord: f32, last: u32) -> (u32, f32) {
-    // `max`/`min` (not `clamp`) also turn NaN into 0. Dimensions are below
-    // 2^31, so the i32 conversion is exact; it is several instructions
-    // cheaper than a saturating f32 → u32 cast.
     let p = p.max(0.0).min(max_coord);
-    let i = ((p as i32) as u32).min(last);
+    // SAFETY: `max`/`min` map NaN to 0 and bound `p` to [0, max_coord], and
+    // grid dimensions are below 2^31, so the truncation is representable.
+    // The checked cast costs a NaN and overflow fix-up per axis per sample
+    // (8% of a frame's instructions, measured with callgrind).
+    let i = (unsafe { p.to_int_unchecked::<i32>() } as u32).min(last);
     (i, p - i as f32)
-}
-
-/// Trilinear interpolation from `base` with the strides to the x, y and z
-/// neighbours (a stride is 0 along an axis of size 1).
-#[inline(always)]
-pub(crate) fn trilinear<S: Sample>(data: &[S], base: usize, stride: [usize; 3], f: Vec3) -> f32 {
-    let [sx, sy, sz] = stride;
-    let last = base + sx + sy + sz;
-    // One bounds check for the whole cell instead of eight: the largest
-    // offset is `last`, every other one is a sub-sum of it.
-    assert!(last < data.len(), "trilinear cell outside the volume");
-    // SAFETY: the strides are non-negative, so each index below lies in
-    // `base..=last`, and `last < data.len()` was just checked.
-    let at = |i: usize| unsafe { data.get_unchecked(i) }.to_f32();
-    let c000 = at(base);
-    let c001 = at(base + sz);
-    let c010 = at(base + sy);
-    let c011 = at(base + sy + sz);
-    let c100 = at(base + sx);
-    let c101 = at(base + sx + sz);
-    let c110 = at(base + sx + sy);
-    let c111 = at(last);
-    let c00 = c000 + (c001 - c000) * f.z;
-    let c01 = c010 + (c011 - c010) * f.z;
-    let c10 = c100 + (c101 - c100) * f.z;
-    let c11 = c110 + (c111 - c110) * f.z;
-    let c0 = c00 + (c01 - c00) * f.y;
-    let c1 = c10 + (c11 - c10) * f.y;
-    c0 + (c1 - c0) * f.x
 }
 
 #[cfg(test)]
