@@ -74,7 +74,9 @@ pub mod prelude {
     pub use crate::camera::{Camera, Projection};
     pub use crate::integrator::{Phong, RenderMode};
     pub use crate::render::{
-        Frame, FrameStats, RenderOptions, Renderer, SerialRenderer, TiledRenderer,
+        AnyRenderer, Cancel, Frame, FrameRequest, FrameStats, FrontEvent, FrontOptions,
+        ObjectConfig, ObjectRenderer, Quality, RenderOptions, Renderer, RendererFront,
+        RendererKind, SerialRenderer, TaskOrder, TiledRenderer,
     };
     pub use crate::sample::{Sample, SampleType};
     pub use crate::scene::Scene;

@@ -9,10 +9,33 @@ use glam::Vec3;
 /// Volume viewer and headless renderer for CPU ray casting.
 #[derive(Debug, Parser)]
 #[command(name = "vol_app", version, about, long_about = None)]
+#[command(args_conflicts_with_subcommands = true)]
+#[command(
+    after_help = "Without a subcommand the interactive viewer opens on FILE, or on the \
+built-in demo volume.\n\nViewer controls: left drag orbits, right drag pans, the wheel zooms, \
+double-click resets the camera; drop a file on the window to open it."
+)]
 pub struct Cli {
     /// What to do; without a subcommand the interactive viewer opens.
     #[command(subcommand)]
     pub command: Option<Command>,
+    /// The viewer's options.
+    #[command(flatten)]
+    pub viewer: ViewerArgs,
+}
+
+/// Options of the interactive viewer (`vol_app [FILE]`).
+#[derive(Debug, Args)]
+pub struct ViewerArgs {
+    /// Volume file to open in the viewer. Without it, the built-in demo volume.
+    pub file: Option<PathBuf>,
+    /// Transfer function for the first volume: shapes, skull, ramp, ct-bone,
+    /// ct-soft, mr-default.
+    #[arg(long, value_name = "NAME")]
+    pub tf_preset: Option<String>,
+    /// Transfer function JSON file for the first volume (SPEC §4).
+    #[arg(long, value_name = "FILE.json", conflicts_with = "tf_preset")]
+    pub tf: Option<PathBuf>,
 }
 
 /// Subcommands.
@@ -42,10 +65,20 @@ impl Switch {
 pub enum RendererKind {
     /// One thread, the reference.
     Serial,
-    /// Screen tiles on a thread pool (the default: fastest measured).
+    /// Screen tiles on a thread pool.
     Tiles,
-    /// Object-parallel bricks (not built yet; falls back to tiles).
+    /// Object-parallel: bricks front to back into tiles (the default: the
+    /// fastest measured).
     Object,
+}
+
+/// Object renderer task order.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, clap::ValueEnum)]
+pub enum TaskOrderArg {
+    /// A render thread keeps its tile until the tile is done.
+    TileFirst,
+    /// Every task goes back to the shared queue (the seed thesis's scheme).
+    Queue,
 }
 
 /// Rendering mode.
@@ -122,11 +155,27 @@ pub struct RenderArgs {
     #[arg(long, value_enum, default_value_t = Switch::On)]
     pub ess: Switch,
     /// Which renderer schedules the rays.
-    #[arg(long, value_enum, default_value_t = RendererKind::Tiles)]
+    #[arg(long, value_enum, default_value_t = RendererKind::Object)]
     pub renderer: RendererKind,
-    /// Render threads (0 = all cores). The serial renderer always uses one.
-    #[arg(long, value_name = "N", default_value_t = 0)]
-    pub threads: usize,
+    /// Threads in all (0 = all cores). The serial renderer always uses one.
+    #[arg(long, value_name = "N", default_value_t = 0, value_parser = clap::value_parser!(u32).range(0..=1024))]
+    pub threads: u32,
+    /// Tile side in pixels for the tiles and object renderers (default: the
+    /// renderer's measured default).
+    #[arg(long, value_name = "PX", value_parser = clap::value_parser!(u32).range(1..=4096))]
+    pub tile: Option<u32>,
+    /// Brick side in voxels for the object renderer (default: measured,
+    /// whole storage bricks for a bricked file).
+    #[arg(long, value_name = "VOXELS", value_parser = clap::value_parser!(u32).range(1..=4096))]
+    pub brick: Option<u32>,
+    /// Object renderer: how many of the --threads only composite (0 = the
+    /// render threads composite their own tasks).
+    #[arg(long, value_name = "N", default_value_t = 0, value_parser = clap::value_parser!(u32).range(0..=1023))]
+    pub composite_threads: u32,
+    /// Object renderer: after a task a render thread continues with the same
+    /// tile (tile-first, the default) or returns it to the shared queue.
+    #[arg(long, value_enum, default_value_t = TaskOrderArg::TileFirst)]
+    pub task_order: TaskOrderArg,
     /// Background colour, each channel 0..1.
     #[arg(long, value_name = "R,G,B", value_parser = parse_vec3, default_value = "0,0,0")]
     pub background: Vec3,
@@ -238,5 +287,17 @@ mod tests {
         };
         assert_eq!(a.camera_pos, Some(Vec3::new(-1.0, -2.0, -3.0)));
         assert_eq!(a.iso, Some(-5.0));
+    }
+
+    #[test]
+    fn a_file_without_a_subcommand_is_for_the_viewer() {
+        let cli = Cli::try_parse_from(["vol_app", "head.vol", "--tf-preset", "skull"]).unwrap();
+        assert!(cli.command.is_none());
+        assert_eq!(cli.viewer.file, Some(PathBuf::from("head.vol")));
+        assert_eq!(cli.viewer.tf_preset.as_deref(), Some("skull"));
+        let cli = Cli::try_parse_from(["vol_app"]).unwrap();
+        assert!(cli.command.is_none() && cli.viewer.file.is_none());
+        let cli = Cli::try_parse_from(["vol_app", "render", "x.vol"]).unwrap();
+        assert!(matches!(cli.command, Some(Command::Render(_))));
     }
 }

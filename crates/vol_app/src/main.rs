@@ -1,15 +1,18 @@
 //! `vol_app`: the volume viewer and its headless renderer.
 //!
-//! `vol_app render FILE ...` renders without a window (SPEC §6). `vol_app`
-//! without a subcommand will open the interactive viewer; until it exists it
-//! says so and points to `vol_app render`.
+//! `vol_app render FILE ...` renders without a window (SPEC §6). `vol_app
+//! [FILE]` without a subcommand opens the interactive viewer (the library's
+//! [`vol_app::viewer`]).
 
 mod cli;
-mod demo;
 mod render_cmd;
 mod stats;
 
 use std::process::ExitCode;
+
+use raycaster::transfer::{PRESET_NAMES, TransferFunction};
+use vol_app::demo;
+use vol_app::viewer::{self, StartOptions};
 
 fn main() -> ExitCode {
     // A bug must still end in one line on stderr, never a backtrace dump.
@@ -32,12 +35,7 @@ fn main() -> ExitCode {
     };
     let result = match cli.command {
         Some(cli::Command::Render(args)) => render_cmd::run(&args),
-        None => {
-            eprintln!(
-                "vol_app: the interactive viewer is not built yet; render headlessly with `vol_app render FILE --out image.png` (see `vol_app render --help`)"
-            );
-            return ExitCode::from(2);
-        }
+        None => run_viewer(cli.viewer),
     };
     match result {
         Ok(()) => ExitCode::SUCCESS,
@@ -46,6 +44,29 @@ fn main() -> ExitCode {
             ExitCode::FAILURE
         }
     }
+}
+
+/// Checks the viewer's arguments, then opens its window.
+fn run_viewer(args: cli::ViewerArgs) -> Result<(), anyhow_like::Error> {
+    if let Some(name) = &args.tf_preset
+        && !PRESET_NAMES.contains(&name.as_str())
+    {
+        return Err(format!(
+            "unknown transfer function preset '{name}' (known: {})",
+            PRESET_NAMES.join(", ")
+        )
+        .into());
+    }
+    let tf = match &args.tf {
+        Some(path) => Some(TransferFunction::from_json_file(path)?),
+        None => None,
+    };
+    viewer::run(StartOptions {
+        file: args.file,
+        tf_preset: args.tf_preset,
+        tf,
+    })?;
+    Ok(())
 }
 
 /// The error and its causes on one line.

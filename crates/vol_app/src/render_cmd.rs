@@ -8,7 +8,7 @@ use raycaster::prelude::*;
 use raycaster::transfer::PRESET_NAMES;
 
 use crate::anyhow_like::Error;
-use crate::cli::{Mode, RenderArgs, RendererKind};
+use crate::cli::{Mode, RenderArgs, RendererKind, TaskOrderArg};
 use crate::stats::{RenderStats, median, peak_rss_mb};
 
 /// Runs the `render` subcommand.
@@ -94,25 +94,40 @@ pub fn run(args: &RenderArgs) -> Result<(), Error> {
         return Err("--background channels must be in 0..1".into());
     }
 
-    let (frames, name, threads) = match args.renderer {
-        RendererKind::Serial => {
-            let mut r = SerialRenderer::new();
-            (
-                render_repeated(&mut r, &scene, &camera, &tf, &options, args.repeat)?,
-                r.name(),
-                1,
-            )
-        }
-        RendererKind::Tiles | RendererKind::Object => {
-            let mut r = TiledRenderer::new(args.threads, 16)?;
-            let t = r.threads();
-            (
-                render_repeated(&mut r, &scene, &camera, &tf, &options, args.repeat)?,
-                r.name(),
-                t,
-            )
+    let threads = args.threads as usize;
+    let mut renderer = match args.renderer {
+        RendererKind::Serial => AnyRenderer::Serial(SerialRenderer::new()),
+        RendererKind::Tiles => AnyRenderer::Tiles(TiledRenderer::new(
+            threads,
+            args.tile.unwrap_or(TiledRenderer::DEFAULT_TILE),
+        )?),
+        RendererKind::Object => {
+            let total = if threads == 0 {
+                std::thread::available_parallelism().map_or(1, |n| n.get())
+            } else {
+                threads
+            };
+            let composite = args.composite_threads as usize;
+            if composite >= total {
+                return Err(format!(
+                    "--composite-threads {composite} leaves no render thread of --threads {total}"
+                )
+                .into());
+            }
+            AnyRenderer::Object(ObjectRenderer::with_config(ObjectConfig {
+                render_threads: total - composite,
+                composite_threads: composite,
+                tile: args.tile.unwrap_or(ObjectConfig::DEFAULT_TILE),
+                brick: args.brick.unwrap_or(0),
+                order: match args.task_order {
+                    TaskOrderArg::TileFirst => TaskOrder::TileFirst,
+                    TaskOrderArg::Queue => TaskOrder::Queue,
+                },
+            })?)
         }
     };
+    let frames = render_repeated(&mut renderer, &scene, &camera, &tf, &options, args.repeat)?;
+    let (name, threads) = (renderer.name(), renderer.threads());
     let (last, times) = frames;
 
     let out = match (&args.out, args.stats) {

@@ -307,8 +307,23 @@ fn bad_arguments_give_one_line_errors() {
 }
 
 #[test]
-fn without_a_subcommand_it_points_to_render() {
-    let out = bin().output().unwrap();
-    assert!(!out.status.success());
-    assert!(String::from_utf8_lossy(&out.stderr).contains("vol_app render"));
+fn without_a_display_the_viewer_fails_with_one_line() {
+    // No subcommand opens the viewer; with no display to open it on, that is
+    // a one-line error that points to `vol_app render`.
+    let out = bin()
+        .env_remove("DISPLAY")
+        .env_remove("WAYLAND_DISPLAY")
+        .output()
+        .unwrap();
+    assert_one_line_error(&out, "vol_app render");
+}
+
+#[test]
+fn viewer_arguments_are_checked_before_a_window_opens() {
+    let out = bin().args(["--tf-preset", "nope"]).output().unwrap();
+    assert_one_line_error(&out, "nope");
+    let dir = TempDir::new("viewer_args");
+    let bad_tf = write_bytes(&dir, "bad_viewer.json", b"{");
+    let out = bin().arg("--tf").arg(&bad_tf).output().unwrap();
+    assert_one_line_error(&out, "bad_viewer.json");
 }

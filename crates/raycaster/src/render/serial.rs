@@ -3,7 +3,7 @@
 use std::time::Instant;
 
 use super::plan::{FramePlan, PlanCache, RenderOptions, render_pixel};
-use super::{Frame, FrameStats, Renderer};
+use super::{Cancel, Frame, FrameStats, Renderer};
 use crate::camera::Camera;
 use crate::error::Result;
 use crate::scene::{Scene, VolumeSource, VolumeVisitor};
@@ -32,10 +32,11 @@ struct SerialPass<'a> {
     value_range: (f32, f32),
     tf: &'a TransferFunction,
     options: &'a RenderOptions,
+    cancel: Cancel<'a>,
 }
 
 impl VolumeVisitor for SerialPass<'_> {
-    type Output = (Vec<u8>, FrameStats);
+    type Output = Option<(Vec<u8>, FrameStats)>;
 
     fn visit<V: Volume>(self, volume: &V) -> Self::Output {
         let plan = self.plan;
@@ -48,6 +49,9 @@ impl VolumeVisitor for SerialPass<'_> {
         // each other's cache lines, which matters for volumes larger than
         // the caches. The image is the same in any order.
         for t in plan.rect.tiles(SERIAL_TILE) {
+            if self.cancel.is_cancelled() {
+                return None;
+            }
             for j in t.y0..t.y1 {
                 for i in t.x0..t.x1 {
                     let px = render_pixel(&ctx, plan, self.options.mode, bg, i, j, &mut stats);
@@ -56,7 +60,7 @@ impl VolumeVisitor for SerialPass<'_> {
                 }
             }
         }
-        (rgb, stats)
+        Some((rgb, stats))
     }
 }
 
@@ -76,21 +80,36 @@ impl Renderer for SerialRenderer {
         tf: &TransferFunction,
         options: &RenderOptions,
     ) -> Result<Frame> {
+        let frame = self.render_cancellable(scene, camera, tf, options, Cancel::never())?;
+        Ok(frame.expect("a frame that cannot be cancelled was cancelled"))
+    }
+
+    fn render_cancellable<V: VolumeSource>(
+        &mut self,
+        scene: &Scene<V>,
+        camera: &Camera,
+        tf: &TransferFunction,
+        options: &RenderOptions,
+        cancel: Cancel<'_>,
+    ) -> Result<Option<Frame>> {
         let start = Instant::now();
         let plan = FramePlan::new(&mut self.cache, scene, scene.grid(), camera, tf, options)?;
-        let (rgb, mut stats) = scene.volume().accept(SerialPass {
+        let Some((rgb, mut stats)) = scene.volume().accept(SerialPass {
             plan: &plan,
             cells: scene.macrocells(),
             value_range: scene.value_range(),
             tf,
             options,
-        });
+            cancel,
+        }) else {
+            return Ok(None);
+        };
         stats.time = start.elapsed();
-        Ok(Frame {
+        Ok(Some(Frame {
             width: plan.width,
             height: plan.height,
             rgb,
             stats,
-        })
+        }))
     }
 }

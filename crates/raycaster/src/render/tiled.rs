@@ -6,7 +6,7 @@ use std::time::Instant;
 use rayon::prelude::*;
 
 use super::plan::{FramePlan, PlanCache, RenderOptions, render_pixel};
-use super::{Frame, FrameStats, Renderer};
+use super::{Cancel, Frame, FrameStats, Renderer};
 use crate::camera::{Camera, PixelRect};
 use crate::error::{Error, Result};
 use crate::scene::{Scene, VolumeSource, VolumeVisitor};
@@ -31,6 +31,11 @@ impl std::fmt::Debug for TiledRenderer {
 }
 
 impl TiledRenderer {
+    /// Default tile side in pixels. On the benchmark frame (800³ shapes,
+    /// 700×700, 2 threads) tiles of 16 and 32 pixels were within noise of
+    /// each other, 8 pixels about 7% and 64 pixels about 18% slower.
+    pub const DEFAULT_TILE: u32 = 16;
+
     /// A renderer with `threads` workers (0 = one per core) and square tiles
     /// of `tile` pixels.
     pub fn new(threads: usize, tile: u32) -> Result<Self> {
@@ -62,10 +67,13 @@ struct TiledPass<'a> {
     tf: &'a TransferFunction,
     options: &'a RenderOptions,
     tiles: &'a [PixelRect],
+    cancel: Cancel<'a>,
 }
 
 impl VolumeVisitor for TiledPass<'_> {
-    type Output = Vec<(Vec<u8>, FrameStats)>;
+    /// Per tile its pixels and counters; `None` for tiles skipped after a
+    /// cancellation.
+    type Output = Vec<Option<(Vec<u8>, FrameStats)>>;
 
     fn visit<V: Volume>(self, volume: &V) -> Self::Output {
         let plan = self.plan;
@@ -75,6 +83,9 @@ impl VolumeVisitor for TiledPass<'_> {
             .par_iter()
             .with_max_len(1)
             .map(|t| {
+                if self.cancel.is_cancelled() {
+                    return None;
+                }
                 let mut stats = FrameStats::default();
                 let mut rgb = Vec::with_capacity(3 * t.area() as usize);
                 for j in t.y0..t.y1 {
@@ -90,7 +101,7 @@ impl VolumeVisitor for TiledPass<'_> {
                         ));
                     }
                 }
-                (rgb, stats)
+                Some((rgb, stats))
             })
             .collect()
     }
@@ -112,6 +123,18 @@ impl Renderer for TiledRenderer {
         tf: &TransferFunction,
         options: &RenderOptions,
     ) -> Result<Frame> {
+        let frame = self.render_cancellable(scene, camera, tf, options, Cancel::never())?;
+        Ok(frame.expect("a frame that cannot be cancelled was cancelled"))
+    }
+
+    fn render_cancellable<V: VolumeSource>(
+        &mut self,
+        scene: &Scene<V>,
+        camera: &Camera,
+        tf: &TransferFunction,
+        options: &RenderOptions,
+        cancel: Cancel<'_>,
+    ) -> Result<Option<Frame>> {
         let start = Instant::now();
         let plan = FramePlan::new(&mut self.cache, scene, scene.grid(), camera, tf, options)?;
         let tiles: Vec<PixelRect> = plan.rect.tiles(self.tile).collect();
@@ -122,12 +145,21 @@ impl Renderer for TiledRenderer {
             tf,
             options,
             tiles: &tiles,
+            cancel,
         };
         let results = self.pool.install(|| scene.volume().accept(pass));
+        if cancel.is_cancelled() {
+            return Ok(None);
+        }
         let bg_rgb = FramePlan::background_rgb(options.background);
         let mut rgb = bg_rgb.repeat(plan.width as usize * plan.height as usize);
         let mut stats = FrameStats::default();
-        for (t, (pixels, s)) in tiles.iter().zip(results) {
+        for (t, result) in tiles.iter().zip(results) {
+            // A tile is only missing when the frame was cancelled, which was
+            // checked above; treat a missing one as a cancellation anyway.
+            let Some((pixels, s)) = result else {
+                return Ok(None);
+            };
             stats.rays += s.rays;
             stats.samples += s.samples;
             let w = 3 * (t.x1 - t.x0) as usize;
@@ -137,11 +169,11 @@ impl Renderer for TiledRenderer {
             }
         }
         stats.time = start.elapsed();
-        Ok(Frame {
+        Ok(Some(Frame {
             width: plan.width,
             height: plan.height,
             rgb,
             stats,
-        })
+        }))
     }
 }

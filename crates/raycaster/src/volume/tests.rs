@@ -119,7 +119,15 @@ fn fast_macrocell_ranges_equal_the_generic_ones() {
 fn unchecked_conversions_are_fed_only_representable_values() {
     // The float-to-int truncations skip their checks after clamping; these
     // inputs would be undefined behaviour without the clamps.
-    for v in [f32::NAN, f32::INFINITY, f32::NEG_INFINITY, -1e30, 1e30, -0.0, 3.7] {
+    for v in [
+        f32::NAN,
+        f32::INFINITY,
+        f32::NEG_INFINITY,
+        -1e30,
+        1e30,
+        -0.0,
+        3.7,
+    ] {
         let c = cell_coord(v, 5);
         assert!(c <= 5, "{v} -> {c}");
     }
@@ -127,12 +135,18 @@ fn unchecked_conversions_are_fed_only_representable_values() {
     assert_eq!(cell_coord(1e30, 5), 5);
     assert_eq!(cell_coord(3.7, 5), 3);
     let (lin, bri) = volumes(UVec3::new(6, 5, 4), Vec3::ONE, 3);
-    for p in [Vec3::NAN, Vec3::INFINITY, Vec3::NEG_INFINITY, Vec3::new(f32::NAN, 2.0, -9.0)] {
+    for p in [
+        Vec3::NAN,
+        Vec3::INFINITY,
+        Vec3::NEG_INFINITY,
+        Vec3::new(f32::NAN, 2.0, -9.0),
+    ] {
         assert!(lin.sample(p).is_finite(), "{p}");
         assert!(bri.sample(p).is_finite(), "{p}");
         assert!(lin.gradient(p).is_finite(), "{p}");
     }
-    let tf = crate::transfer::TransferFunction::preset("ramp", crate::sample::SampleType::U8).unwrap();
+    let tf =
+        crate::transfer::TransferFunction::preset("ramp", crate::sample::SampleType::U8).unwrap();
     let lut = crate::transfer::TfLut::new(&tf, 0.5);
     for v in [f32::NAN, f32::INFINITY, f32::NEG_INFINITY] {
         assert!(lut.lookup(v).is_finite(), "{v}");

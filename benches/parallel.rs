@@ -1,0 +1,94 @@
+//! Criterion benchmarks of every renderer kind — serial, screen-parallel
+//! tiles and object-parallel bricks, the parallel ones with 1 and 2 threads —
+//! on a generated "shapes" volume (random balls and boxes with values around
+//! 100, the `shapes` transfer function, ERT and ESS on), linear and bricked.
+//!
+//! Run with `cargo bench --bench parallel`. The full-size benchmark frame
+//! (800³, 700×700) is measured with `vol_app render ... --repeat N --stats`
+//! instead (see the README).
+
+use criterion::{Criterion, criterion_group, criterion_main};
+use glam::{UVec3, Vec3};
+use raycaster::prelude::*;
+
+/// Value of the `n`³ "shapes" volume at `v`: `count` random balls and boxes
+/// of value 92..=108 on 0.
+fn shapes(n: u32, count: usize, seed: u64) -> impl Fn(UVec3) -> u8 {
+    let mut rng = fastrand::Rng::with_seed(seed);
+    let shapes: Vec<(bool, Vec3, f32, u8)> = (0..count)
+        .map(|_| {
+            let size = n as f32 * 0.09 * (0.5 + rng.f32());
+            let c = Vec3::new(rng.f32(), rng.f32(), rng.f32()) * (n as f32 - 2.0 * size)
+                + Vec3::splat(size);
+            (rng.bool(), c, size * 0.5, rng.u8(92..=108))
+        })
+        .collect();
+    move |v: UVec3| {
+        let p = v.as_vec3();
+        for &(ball, c, r, value) in &shapes {
+            let inside = if ball {
+                (p - c).length() <= r
+            } else {
+                (p - c).abs().max_element() <= r
+            };
+            if inside {
+                return value;
+            }
+        }
+        0
+    }
+}
+
+fn parallel(c: &mut Criterion) {
+    let n = 192;
+    let grid = Grid::new(UVec3::splat(n), Vec3::ONE);
+    let volumes: [(&str, AnyVolume); 2] = [
+        (
+            "linear",
+            LinearVolume::from_fn(grid, shapes(n, 40, 2)).into(),
+        ),
+        (
+            "block16",
+            BrickedVolume::from_fn(grid, 16, shapes(n, 40, 2))
+                .expect("bricked volume")
+                .into(),
+        ),
+    ];
+    let tf = TransferFunction::preset("shapes", SampleType::U8).expect("preset");
+    let mut camera = Camera::look_at(Vec3::splat(270.0), Vec3::ZERO, 256, 256);
+    camera.fov_y_deg = 60.0;
+    let options = RenderOptions {
+        step: Some(0.5),
+        ..RenderOptions::default()
+    };
+    for (name, volume) in volumes {
+        let scene = Scene::new(volume);
+        let mut group = c.benchmark_group(format!("{name} 192^3 shapes 256x256 step 0.5 ERT+ESS"));
+        group.sample_size(10);
+        let mut renderers: Vec<(String, AnyRenderer)> = vec![(
+            "serial".into(),
+            AnyRenderer::new(RendererKind::Serial, 1).expect("serial"),
+        )];
+        for kind in [RendererKind::Tiles, RendererKind::Object] {
+            for threads in [1, 2] {
+                renderers.push((
+                    format!("{} {threads}t", kind.name()),
+                    AnyRenderer::new(kind, threads).expect("renderer"),
+                ));
+            }
+        }
+        for (label, mut renderer) in renderers {
+            group.bench_function(label, |b| {
+                b.iter(|| {
+                    renderer
+                        .render(&scene, &camera, &tf, &options)
+                        .expect("render")
+                })
+            });
+        }
+        group.finish();
+    }
+}
+
+criterion_group!(benches, parallel);
+criterion_main!(benches);

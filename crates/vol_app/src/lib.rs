@@ -1,0 +1,6 @@
+//! `vol_app` as a library: the built-in demo volume and the interactive
+//! viewer, so that the binary and the UI tests share one implementation.
+//! The binary (`src/main.rs`) adds the command line and `vol_app render`.
+
+pub mod demo;
+pub mod viewer;

@@ -1,0 +1,465 @@
+//! [`ViewerApp`]: the viewer's state and its frame loop, wired to eframe.
+//!
+//! Each UI frame: take in dropped files, dialog answers, a finished load and
+//! a finished render; draw the left panel, the status line and the canvas;
+//! turn mouse input on the canvas into camera moves; and, when what should
+//! be on screen differs from what was last requested, send one new request
+//! to the [`RenderLink`]. Nothing here waits: loads, dialogs and frames all
+//! run on other threads and wake the UI when they have news.
+
+use std::path::{Path, PathBuf};
+use std::sync::Arc;
+use std::time::Instant;
+
+use egui::{TextureHandle, TextureOptions, Ui};
+use glam::Vec3;
+use raycaster::prelude::*;
+
+use super::camera_control::OrbitCamera;
+use super::dialogs::{Answer, Dialogs, Purpose};
+use super::loading::{Histogram, LoadJob, Loaded, Source, VolumeInfo};
+use super::render_link::{RenderLink, RenderRequest, RenderedFrame};
+use super::state::Settings;
+use super::tf_editor::TfEditor;
+
+/// How the viewer starts.
+#[derive(Debug, Clone, Default)]
+pub struct StartOptions {
+    /// Volume to open; the built-in demo when `None`.
+    pub file: Option<PathBuf>,
+    /// Transfer function for the first volume: a preset name...
+    pub tf_preset: Option<String>,
+    /// ...or a TF (e.g. read from a JSON file).
+    pub tf: Option<TransferFunction>,
+}
+
+/// The volume on screen.
+#[derive(Debug)]
+pub struct Volume {
+    /// Volume and acceleration data.
+    pub scene: Arc<Scene>,
+    /// Facts for the info panel.
+    pub info: VolumeInfo,
+    /// Value histogram.
+    pub histogram: Histogram,
+}
+
+/// The last finished frame, uploaded as a texture.
+pub(super) struct ShownFrame {
+    pub(super) texture: TextureHandle,
+    pub(super) frame: RenderedFrame,
+}
+
+/// The viewer.
+pub struct ViewerApp {
+    pub(super) ctx: egui::Context,
+    pub(super) settings: Settings,
+    pub(super) volume: Option<Volume>,
+    pub(super) loading: Option<LoadJob>,
+    /// The start options, until they have been applied to the first volume.
+    start: Option<StartOptions>,
+    pub(super) camera: OrbitCamera,
+    pub(super) link: RenderLink,
+    pub(super) last_request: Option<RenderRequest>,
+    pub(super) shown: Option<ShownFrame>,
+    pub(super) render_error: Option<String>,
+    pub(super) error: Option<String>,
+    pub(super) notice: Option<String>,
+    pub(super) tf_editor: TfEditor,
+    pub(super) dialogs: Dialogs,
+    pub(super) path_input: String,
+    /// A continuous control (camera slider, TF point, iso slider) is being
+    /// dragged: in adaptive mode this renders previews, like camera motion.
+    pub(super) controls_moving: bool,
+    frames_received: u64,
+    pub(super) last_scroll: Option<Instant>,
+    pub(super) canvas_aspect: f32,
+}
+
+impl ViewerApp {
+    /// A viewer on `ctx` with `settings`, starting to load `start.file` (or
+    /// the demo volume) in the background.
+    pub fn new(ctx: &egui::Context, settings: Settings, start: StartOptions) -> Self {
+        let wake = ctx.clone();
+        let link = RenderLink::new(move || wake.request_repaint());
+        let mut app = ViewerApp {
+            ctx: ctx.clone(),
+            camera: OrbitCamera::framing(
+                &raycaster::geometry::Aabb::new(Vec3::ZERO, Vec3::ONE),
+                1.0,
+            ),
+            settings,
+            volume: None,
+            loading: None,
+            start: None,
+            link,
+            last_request: None,
+            shown: None,
+            render_error: None,
+            error: None,
+            notice: None,
+            tf_editor: TfEditor::default(),
+            dialogs: Dialogs::default(),
+            path_input: String::new(),
+            controls_moving: false,
+            frames_received: 0,
+            last_scroll: None,
+            canvas_aspect: 1.0,
+        };
+        match &start.file {
+            Some(p) => app.open(p),
+            None => app.open_demo(),
+        }
+        app.start = Some(start);
+        app
+    }
+
+    /// Starts loading `path` in the background; the current volume stays on
+    /// screen until the new one is ready (and stays if loading fails).
+    pub fn open(&mut self, path: &Path) {
+        let mode = if self.settings.load_in_ram {
+            LoadMode::Ram
+        } else {
+            LoadMode::Map
+        };
+        self.path_input = path.display().to_string();
+        self.error = None;
+        self.start_loading(Source::File(path.to_path_buf(), mode));
+    }
+
+    /// Starts generating the built-in demo volume.
+    pub fn open_demo(&mut self) {
+        self.error = None;
+        self.start_loading(Source::Demo);
+    }
+
+    fn start_loading(&mut self, source: Source) {
+        let wake = self.ctx.clone();
+        self.loading = Some(LoadJob::start(source, move || wake.request_repaint()));
+    }
+
+    /// The settings (persisted between runs).
+    pub fn settings(&self) -> &Settings {
+        &self.settings
+    }
+
+    /// The settings, to change them as the panel would.
+    pub fn settings_mut(&mut self) -> &mut Settings {
+        &mut self.settings
+    }
+
+    /// The camera.
+    pub fn camera(&self) -> &OrbitCamera {
+        &self.camera
+    }
+
+    /// The volume on screen.
+    pub fn volume(&self) -> Option<&Volume> {
+        self.volume.as_ref()
+    }
+
+    /// True while a volume is loading.
+    pub fn is_loading(&self) -> bool {
+        self.loading.is_some()
+    }
+
+    /// True while the newest render request has not been answered.
+    pub fn is_rendering(&self) -> bool {
+        self.link.is_busy()
+    }
+
+    /// Frames received from the renderer so far.
+    pub fn frames_received(&self) -> u64 {
+        self.frames_received
+    }
+
+    /// The frame on screen.
+    pub fn last_frame(&self) -> Option<&RenderedFrame> {
+        self.shown.as_ref().map(|s| &s.frame)
+    }
+
+    /// The newest render request.
+    pub fn last_request(&self) -> Option<&RenderRequest> {
+        self.last_request.as_ref()
+    }
+
+    /// The transfer-function editor.
+    pub fn tf_editor(&self) -> &TfEditor {
+        &self.tf_editor
+    }
+
+    /// The error shown to the user, if any.
+    pub fn error(&self) -> Option<&str> {
+        self.error.as_deref()
+    }
+
+    /// Saves the frame on screen as a PNG.
+    pub fn save_frame_png(&mut self, path: &Path) -> Result<(), String> {
+        let shown = self
+            .shown
+            .as_ref()
+            .ok_or("no frame has been rendered yet")?;
+        shown
+            .frame
+            .frame
+            .save_png(path)
+            .map_err(|e| e.to_string())?;
+        self.remember_dir(path);
+        Ok(())
+    }
+
+    /// Replaces the TF with one read from a JSON file.
+    pub fn load_tf_file(&mut self, path: &Path) -> Result<(), String> {
+        let tf = TransferFunction::from_json_file(path).map_err(|e| e.to_string())?;
+        self.settings.tf = tf;
+        self.settings.tf_preset = None;
+        self.remember_dir(path);
+        Ok(())
+    }
+
+    /// Writes the TF as JSON (SPEC §4).
+    pub fn save_tf_file(&mut self, path: &Path) -> Result<(), String> {
+        std::fs::write(path, self.settings.tf.to_json())
+            .map_err(|e| format!("{}: {e}", path.display()))?;
+        self.remember_dir(path);
+        Ok(())
+    }
+
+    /// Switches to a named TF preset for the volume's sample type.
+    pub fn set_tf_preset(&mut self, name: &str) {
+        let sample_type = self
+            .volume
+            .as_ref()
+            .map_or(SampleType::U8, |v| v.info.sample_type);
+        if let Some(tf) = TransferFunction::preset(name, sample_type) {
+            self.settings.tf = tf;
+            self.settings.tf_preset = Some(name.to_string());
+        }
+    }
+
+    fn remember_dir(&mut self, path: &Path) {
+        if let Some(dir) = path.parent().filter(|d| d.is_dir()) {
+            self.settings.last_dir = Some(dir.to_path_buf());
+        }
+    }
+
+    /// Shows a file dialog for `purpose`.
+    pub(super) fn show_dialog(&mut self, purpose: Purpose) {
+        let wake = self.ctx.clone();
+        self.dialogs
+            .show(purpose, self.settings.last_dir.clone(), move || {
+                wake.request_repaint()
+            });
+    }
+
+    /// One UI frame.
+    pub fn show(&mut self, ui: &mut Ui) {
+        self.take_dropped_files(ui.ctx());
+        self.poll_dialogs();
+        self.poll_loading();
+        self.poll_frames(ui.ctx());
+        if ui.input_mut(|i| i.consume_key(egui::Modifiers::COMMAND, egui::Key::O)) {
+            self.show_dialog(Purpose::OpenVolume);
+        }
+        egui::Panel::left("controls")
+            .resizable(true)
+            .default_size(340.0)
+            .size_range(260.0..=640.0)
+            .show(ui, |ui| {
+                egui::ScrollArea::vertical().show(ui, |ui| self.left_panel(ui));
+            });
+        egui::Panel::bottom("status").show(ui, |ui| self.status_line(ui));
+        egui::CentralPanel::default().show(ui, |ui| self.canvas(ui));
+    }
+
+    fn take_dropped_files(&mut self, ctx: &egui::Context) {
+        let dropped = ctx.input(|i| i.raw.dropped_files.first().map(|f| f.path().to_path_buf()));
+        if let Some(path) = dropped {
+            self.open(&path);
+        }
+    }
+
+    fn poll_dialogs(&mut self) {
+        let (purpose, path) = match self.dialogs.poll() {
+            Some((purpose, Answer::Chosen(path))) => (purpose, path),
+            Some((_, Answer::Unavailable)) => {
+                self.notice = Some(
+                    "No file dialog could be shown (is xdg-desktop-portal running?): \
+                     type a path above, or drop the file on the window."
+                        .into(),
+                );
+                return;
+            }
+            Some((_, Answer::Cancelled)) | None => return,
+        };
+        let result = match purpose {
+            Purpose::OpenVolume => {
+                self.open(&path);
+                Ok(())
+            }
+            Purpose::LoadTf => self.load_tf_file(&path),
+            Purpose::SaveTf => self.save_tf_file(&path),
+            Purpose::SavePng => self.save_frame_png(&path),
+        };
+        match result {
+            Ok(()) if purpose != Purpose::OpenVolume => {
+                let verb = if purpose == Purpose::LoadTf {
+                    "Loaded"
+                } else {
+                    "Saved"
+                };
+                self.notice = Some(format!("{verb} {}", short_name(&path)));
+            }
+            Ok(()) => {}
+            Err(e) => self.error = Some(e),
+        }
+    }
+
+    fn poll_loading(&mut self) {
+        let Some(result) = self.loading.as_ref().and_then(LoadJob::poll) else {
+            return;
+        };
+        let source = self.loading.take().map(|j| j.source().clone());
+        match result {
+            Ok(loaded) => self.install(loaded, source.as_ref()),
+            Err(e) => {
+                let keep = if self.volume.is_some() {
+                    "; still showing the previous volume"
+                } else {
+                    ""
+                };
+                self.error = Some(format!("Cannot open {e}{keep}"));
+                if self.volume.is_none() && source != Some(Source::Demo) {
+                    // Nothing on screen yet (a bad FILE argument): show the
+                    // demo, and keep the error on screen.
+                    self.start_loading(Source::Demo);
+                }
+            }
+        }
+    }
+
+    /// Puts a freshly loaded volume on screen, fitting TF, iso value and camera.
+    fn install(&mut self, loaded: Loaded, source: Option<&Source>) {
+        let Loaded {
+            scene,
+            info,
+            histogram,
+        } = loaded;
+        let sample_type = info.sample_type;
+        let s = &mut self.settings;
+        match self.start.take() {
+            Some(StartOptions { tf: Some(tf), .. }) => {
+                s.tf = tf;
+                s.tf_preset = None;
+            }
+            Some(StartOptions {
+                tf_preset: Some(name),
+                ..
+            }) => s.tf_preset = Some(name),
+            _ if source == Some(&Source::Demo) => {
+                s.tf_preset = Some(crate::demo::DEMO_TF.to_string());
+            }
+            _ => {}
+        }
+        // Presets depend on the sample type (ramp spans the type's range).
+        if let Some(tf) = s
+            .tf_preset
+            .as_deref()
+            .and_then(|n| TransferFunction::preset(n, sample_type))
+        {
+            s.tf = tf;
+        }
+        if !tf_shows_anything(&s.tf, info.value_range)
+            && let Some(ramp) = TransferFunction::preset("ramp", sample_type)
+        {
+            s.tf = ramp;
+            s.tf_preset = Some("ramp".into());
+        }
+        let (lo, hi) = info.value_range;
+        if !(lo..=hi).contains(&s.iso_value) {
+            s.iso_value = 0.5 * (lo + hi);
+        }
+        self.notice = Some(format!(
+            "Opened {} in {:.0} ms",
+            info.name,
+            info.load_time.as_secs_f64() * 1e3
+        ));
+        if let Some(p) = info.path.clone() {
+            self.remember_dir(&p);
+        }
+        self.camera = OrbitCamera::framing(&scene.grid().bounds(), self.canvas_aspect);
+        self.volume = Some(Volume {
+            scene,
+            info,
+            histogram,
+        });
+    }
+
+    fn poll_frames(&mut self, ctx: &egui::Context) {
+        match self.link.poll() {
+            Some(Ok(f)) => {
+                let size = [f.frame.width as usize, f.frame.height as usize];
+                let image = egui::ColorImage::from_rgb(size, &f.frame.rgb);
+                match &mut self.shown {
+                    Some(s) => {
+                        s.texture.set(image, TextureOptions::LINEAR);
+                        s.frame = f;
+                    }
+                    None => {
+                        let texture =
+                            ctx.load_texture("volume-frame", image, TextureOptions::LINEAR);
+                        self.shown = Some(ShownFrame { texture, frame: f });
+                    }
+                }
+                self.frames_received += 1;
+                self.render_error = None;
+            }
+            Some(Err(e)) => self.render_error = Some(e.message),
+            None => {}
+        }
+    }
+}
+
+/// The last component of `path` (a full path has no spaces to wrap at, and
+/// would widen the panel).
+pub(super) fn short_name(path: &Path) -> String {
+    path.file_name().map_or_else(
+        || path.display().to_string(),
+        |n| n.to_string_lossy().into_owned(),
+    )
+}
+
+/// True when some value in `range` has a non-zero opacity under `tf`.
+fn tf_shows_anything(tf: &TransferFunction, (lo, hi): (f32, f32)) -> bool {
+    let probes = (0..=256).map(|k| lo + (hi - lo) * k as f32 / 256.0);
+    let points = tf
+        .points
+        .iter()
+        .map(|p| p.value)
+        .filter(|v| (lo..=hi).contains(v));
+    probes.chain(points).any(|v| tf.evaluate(v).w > 0.0)
+}
+
+impl eframe::App for ViewerApp {
+    fn ui(&mut self, ui: &mut Ui, _frame: &mut eframe::Frame) {
+        self.show(ui);
+    }
+
+    fn save(&mut self, storage: &mut dyn eframe::Storage) {
+        self.settings.save(storage);
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn a_tf_outside_the_data_range_shows_nothing() {
+        let shapes = TransferFunction::preset("shapes", SampleType::U8).unwrap();
+        assert!(tf_shows_anything(&shapes, (0.0, 255.0)));
+        assert!(tf_shows_anything(&shapes, (90.0, 90.0)));
+        assert!(!tf_shows_anything(&shapes, (0.0, 80.0)));
+        assert!(!tf_shows_anything(&shapes, (120.0, 255.0)));
+    }
+}

@@ -1,0 +1,351 @@
+//! Opening volumes on a background thread: read (or map) the file, build the
+//! scene's acceleration data and the value histogram, reporting the phase and
+//! progress as it goes. The UI polls a [`LoadJob`]; a failure is an error
+//! message, never a panic in the UI thread.
+
+use std::path::{Path, PathBuf};
+use std::sync::Arc;
+use std::sync::atomic::{AtomicU32, Ordering};
+use std::time::{Duration, Instant};
+
+use crossbeam_channel::{Receiver, TryRecvError};
+use glam::{UVec3, Vec3};
+use raycaster::prelude::*;
+use raycaster::storage::StorageKind;
+
+/// File extensions the library reads (for the file dialog's filter).
+pub const VOLUME_EXTENSIONS: &[&str] = &["vol"];
+
+/// Where a volume comes from.
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub enum Source {
+    /// A file, memory-mapped or read into RAM.
+    File(PathBuf, LoadMode),
+    /// The built-in demo volume, generated in memory.
+    Demo,
+}
+
+impl Source {
+    /// What to call the source in messages.
+    pub fn name(&self) -> String {
+        match self {
+            Source::File(p, _) => p.display().to_string(),
+            Source::Demo => "the built-in demo volume".into(),
+        }
+    }
+}
+
+/// Facts about a loaded volume, for the info panel.
+#[derive(Debug, Clone, PartialEq)]
+pub struct VolumeInfo {
+    /// File name, or "built-in demo".
+    pub name: String,
+    /// The file, when there is one.
+    pub path: Option<PathBuf>,
+    /// Dimensions in voxels.
+    pub dims: UVec3,
+    /// Voxel spacing.
+    pub spacing: Vec3,
+    /// Sample type.
+    pub sample_type: SampleType,
+    /// Smallest and largest voxel value.
+    pub value_range: (f32, f32),
+    /// File size in bytes.
+    pub file_size: Option<u64>,
+    /// Memory layout.
+    pub layout: Layout,
+    /// RAM or memory-mapped.
+    pub storage: StorageKind,
+    /// Time from the start of loading to a ready scene.
+    pub load_time: Duration,
+}
+
+/// Voxel counts per value bin over the volume's value range.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Histogram {
+    /// Smallest and largest voxel value.
+    pub range: (f32, f32),
+    /// Value at the start of the first bin.
+    pub lo: f32,
+    /// Value at the end of the last bin.
+    pub hi: f32,
+    /// Counts per bin (of a regular subsample of at most [`HISTOGRAM_SAMPLES`] voxels).
+    pub counts: Vec<u64>,
+}
+
+/// Most voxels the histogram looks at (a regular subsample of larger volumes).
+pub const HISTOGRAM_SAMPLES: u64 = 1 << 21;
+
+impl Histogram {
+    /// The histogram of `volume`, whose values lie in `range`, calling
+    /// `progress` with the fraction done.
+    pub fn of(volume: &AnyVolume, range: (f32, f32), mut progress: impl FnMut(f32)) -> Self {
+        let (lo, hi) = range;
+        let integer = volume.sample_type() != SampleType::F32;
+        let bins = if integer && hi - lo < 256.0 {
+            (hi - lo) as usize + 1
+        } else {
+            256
+        };
+        // Integer data: bin i holds value lo + i exactly; otherwise equal widths.
+        let (lo, hi) = if integer && hi - lo < 256.0 {
+            (lo - 0.5, hi + 0.5)
+        } else {
+            (lo, hi.max(lo + f32::EPSILON * lo.abs().max(1.0)))
+        };
+        let dims = volume.grid().dims;
+        let voxels = dims.as_dvec3().element_product();
+        let stride = ((voxels / HISTOGRAM_SAMPLES as f64).cbrt().ceil() as u32).max(1);
+        let mut counts = vec![0u64; bins];
+        let scale = bins as f32 / (hi - lo);
+        raycaster::dispatch_volume!(volume, v => {
+            use raycaster::sample::Sample;
+            let xs = dims.x.div_ceil(stride);
+            for (i, x) in (0..dims.x).step_by(stride as usize).enumerate() {
+                for y in (0..dims.y).step_by(stride as usize) {
+                    for z in (0..dims.z).step_by(stride as usize) {
+                        let s = v.voxel(UVec3::new(x, y, z)).to_f32();
+                        let b = ((s - lo) * scale) as usize;
+                        counts[b.min(bins - 1)] += 1;
+                    }
+                }
+                progress((i + 1) as f32 / xs as f32);
+            }
+        });
+        Histogram {
+            range,
+            lo,
+            hi,
+            counts,
+        }
+    }
+}
+
+/// A volume ready to render.
+#[derive(Debug)]
+pub struct Loaded {
+    /// The volume and its acceleration data.
+    pub scene: Arc<Scene>,
+    /// Facts for the info panel.
+    pub info: VolumeInfo,
+    /// Value histogram for the TF editor.
+    pub histogram: Histogram,
+}
+
+/// The stage a load is in.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Phase {
+    /// Reading the header and mapping (or reading) the samples.
+    Opening,
+    /// Building the macrocell grid for empty-space skipping.
+    Accelerating,
+    /// Counting values for the histogram.
+    Histogram,
+}
+
+impl Phase {
+    /// What the phase is doing, for the progress indicator.
+    pub fn label(self) -> &'static str {
+        match self {
+            Phase::Opening => "opening",
+            Phase::Accelerating => "building the skip grid",
+            Phase::Histogram => "computing the histogram",
+        }
+    }
+}
+
+/// Progress shared between the loading thread and the UI.
+#[derive(Debug, Default)]
+struct Progress {
+    phase: AtomicU32,
+    /// Fraction of the phase done, as `f32` bits; NaN when unknown.
+    fraction: AtomicU32,
+}
+
+impl Progress {
+    fn set(&self, phase: Phase, fraction: Option<f32>) {
+        self.phase.store(phase as u32, Ordering::Relaxed);
+        self.fraction
+            .store(fraction.unwrap_or(f32::NAN).to_bits(), Ordering::Relaxed);
+    }
+
+    fn get(&self) -> (Phase, Option<f32>) {
+        let phase = match self.phase.load(Ordering::Relaxed) {
+            0 => Phase::Opening,
+            1 => Phase::Accelerating,
+            _ => Phase::Histogram,
+        };
+        let f = f32::from_bits(self.fraction.load(Ordering::Relaxed));
+        (phase, (!f.is_nan()).then_some(f))
+    }
+}
+
+/// A volume being loaded on a background thread.
+#[derive(Debug)]
+pub struct LoadJob {
+    source: Source,
+    progress: Arc<Progress>,
+    rx: Receiver<Result<Loaded, String>>,
+    started: Instant,
+}
+
+impl LoadJob {
+    /// Starts loading `source`; `wake` is called from the loading thread
+    /// whenever there is news (progress or the result).
+    pub fn start(source: Source, wake: impl Fn() + Send + 'static) -> Self {
+        let (tx, rx) = crossbeam_channel::bounded(1);
+        let progress = Arc::new(Progress::default());
+        let job = LoadJob {
+            source: source.clone(),
+            progress: progress.clone(),
+            rx,
+            started: Instant::now(),
+        };
+        let spawned = std::thread::Builder::new()
+            .name("vol_app-load".into())
+            .spawn(move || {
+                let result = std::panic::catch_unwind(std::panic::AssertUnwindSafe(|| {
+                    load(&source, &progress, &wake)
+                }))
+                .unwrap_or_else(|_| {
+                    Err(format!("{}: internal error while loading", source.name()))
+                });
+                let _ = tx.send(result);
+                wake();
+            });
+        if let Err(e) = spawned {
+            let (tx, rx) = crossbeam_channel::bounded(1);
+            let _ = tx.send(Err(format!("cannot start the loading thread: {e}")));
+            return LoadJob { rx, ..job };
+        }
+        job
+    }
+
+    /// What is being loaded.
+    pub fn source(&self) -> &Source {
+        &self.source
+    }
+
+    /// The current phase and, when known, the fraction of it done.
+    pub fn progress(&self) -> (Phase, Option<f32>) {
+        self.progress.get()
+    }
+
+    /// Time since the load started.
+    pub fn elapsed(&self) -> Duration {
+        self.started.elapsed()
+    }
+
+    /// The result, once the load has finished.
+    pub fn poll(&self) -> Option<Result<Loaded, String>> {
+        match self.rx.try_recv() {
+            Ok(r) => Some(r),
+            Err(TryRecvError::Empty) => None,
+            Err(TryRecvError::Disconnected) => {
+                Some(Err(format!("{}: loading stopped", self.source.name())))
+            }
+        }
+    }
+}
+
+fn load(source: &Source, progress: &Progress, wake: &dyn Fn()) -> Result<Loaded, String> {
+    let start = Instant::now();
+    progress.set(Phase::Opening, None);
+    wake();
+    let (volume, name, path, file_size) = match source {
+        Source::File(path, mode) => {
+            let volume = raycaster::format::open(path, *mode).map_err(|e| e.to_string())?;
+            let size = std::fs::metadata(path).ok().map(|m| m.len());
+            (volume, file_name(path), Some(path.clone()), size)
+        }
+        Source::Demo => (
+            AnyVolume::from(crate::demo::demo_volume()),
+            "built-in demo".to_string(),
+            None,
+            None,
+        ),
+    };
+    progress.set(Phase::Accelerating, None);
+    wake();
+    let (sample_type, layout, storage) =
+        (volume.sample_type(), volume.layout(), volume.storage_kind());
+    let scene = Scene::new(volume);
+    let value_range = scene.value_range();
+    progress.set(Phase::Histogram, Some(0.0));
+    wake();
+    let mut last_wake = Instant::now();
+    let histogram = Histogram::of(scene.volume(), value_range, |f| {
+        progress.set(Phase::Histogram, Some(f));
+        if last_wake.elapsed() > Duration::from_millis(50) {
+            last_wake = Instant::now();
+            wake();
+        }
+    });
+    let grid = *scene.grid();
+    Ok(Loaded {
+        info: VolumeInfo {
+            name,
+            path,
+            dims: grid.dims,
+            spacing: grid.spacing,
+            sample_type,
+            value_range,
+            file_size,
+            layout,
+            storage,
+            load_time: start.elapsed(),
+        },
+        scene: Arc::new(scene),
+        histogram,
+    })
+}
+
+fn file_name(path: &Path) -> String {
+    path.file_name()
+        .map(|n| n.to_string_lossy().into_owned())
+        .unwrap_or_else(|| path.display().to_string())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use raycaster::volume::LinearVolume;
+
+    fn wait(job: &LoadJob) -> Result<Loaded, String> {
+        let t = Instant::now();
+        loop {
+            if let Some(r) = job.poll() {
+                return r;
+            }
+            assert!(t.elapsed() < Duration::from_secs(20), "load timed out");
+            std::thread::sleep(Duration::from_millis(2));
+        }
+    }
+
+    #[test]
+    fn histogram_counts_every_integer_value_in_its_own_bin() {
+        let grid = Grid::new(UVec3::new(4, 5, 6), Vec3::ONE);
+        let v = AnyVolume::from(LinearVolume::from_fn(grid, |p| (p.x * 10) as u8 + 3));
+        let h = Histogram::of(&v, (3.0, 33.0), |_| {});
+        assert_eq!(h.counts.len(), 31);
+        assert_eq!(h.counts.iter().sum::<u64>(), 120);
+        for (i, &c) in h.counts.iter().enumerate() {
+            assert_eq!(c, if i % 10 == 0 { 30 } else { 0 }, "bin {i}");
+        }
+    }
+
+    #[test]
+    fn the_demo_loads_and_a_missing_file_is_an_error() {
+        let job = LoadJob::start(Source::Demo, || {});
+        let loaded = wait(&job).unwrap();
+        assert_eq!(loaded.info.dims, UVec3::splat(crate::demo::DEMO_SIZE));
+        assert_eq!(loaded.info.storage, StorageKind::Ram);
+        assert!(loaded.histogram.counts.iter().sum::<u64>() > 0);
+        let job = LoadJob::start(
+            Source::File("/nonexistent/x.vol".into(), LoadMode::Map),
+            || {},
+        );
+        let err = wait(&job).unwrap_err();
+        assert!(err.contains("/nonexistent/x.vol"), "{err}");
+    }
+}

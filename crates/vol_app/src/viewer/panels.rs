@@ -1,0 +1,330 @@
+//! The left panel: file, volume information, transfer function, rendering
+//! options and camera, one collapsible section each.
+
+use egui::{CollapsingHeader, Ui};
+use raycaster::storage::StorageKind;
+use raycaster::transfer::PRESET_NAMES;
+
+use super::app::ViewerApp;
+use super::dialogs::Purpose;
+use super::loading::{Source, VolumeInfo};
+use super::state::{Mode, RendererChoice, ResolutionChoice, StepChoice, max_threads};
+use super::tf_editor::format_value;
+
+impl ViewerApp {
+    /// All sections of the left panel.
+    pub(super) fn left_panel(&mut self, ui: &mut Ui) {
+        self.controls_moving = false;
+        ui.add_space(4.0);
+        self.file_section(ui);
+        section(ui, "Volume", |ui| self.volume_section(ui));
+        section(ui, "Transfer function", |ui| self.tf_section(ui));
+        section(ui, "Rendering", |ui| self.render_section(ui));
+        section(ui, "Camera", |ui| self.camera_section(ui));
+    }
+
+    fn file_section(&mut self, ui: &mut Ui) {
+        ui.horizontal(|ui| {
+            if ui
+                .add_enabled(!self.dialogs.is_open(), egui::Button::new("Open…"))
+                .on_hover_text("Open a volume file (Ctrl+O), or drop one on the window")
+                .clicked()
+            {
+                self.show_dialog(Purpose::OpenVolume);
+            }
+            if ui.button("Demo volume").clicked() {
+                self.open_demo();
+            }
+        });
+        let l = ui.label("Path:");
+        ui.horizontal(|ui| {
+            let edit =
+                egui::TextEdit::singleline(&mut self.path_input).hint_text("/path/to/volume.vol");
+            let size = egui::vec2(ui.available_width() - 60.0, ui.spacing().interact_size.y);
+            let edit = ui.add_sized(size, edit).labelled_by(l.id);
+            let enter = edit.lost_focus() && ui.input(|i| i.key_pressed(egui::Key::Enter));
+            if (ui.button("Load").clicked() || enter) && !self.path_input.trim().is_empty() {
+                let path = std::path::PathBuf::from(self.path_input.trim());
+                self.open(&path);
+            }
+        });
+        ui.checkbox(&mut self.settings.load_in_ram, "Read files into RAM")
+            .on_hover_text(
+                "Otherwise files are memory-mapped: instant, and larger than RAM is fine",
+            );
+        if let Some(job) = &self.loading {
+            let (phase, fraction) = job.progress();
+            let name = match job.source() {
+                Source::File(p, _) => super::app::short_name(p),
+                Source::Demo => "the demo volume".into(),
+            };
+            ui.horizontal(|ui| {
+                ui.spinner();
+                ui.label(format!(
+                    "Loading: {} ({:.1} s)",
+                    phase.label(),
+                    job.elapsed().as_secs_f32()
+                ));
+            });
+            ui.add(egui::Label::new(name).truncate());
+            if let Some(f) = fraction {
+                ui.add(egui::ProgressBar::new(f).show_percentage());
+            }
+        }
+        if let Some(n) = &self.notice {
+            ui.add(egui::Label::new(egui::RichText::new(n).weak()).wrap());
+        }
+    }
+
+    fn volume_section(&mut self, ui: &mut Ui) {
+        let Some(v) = &self.volume else {
+            ui.weak("No volume yet.");
+            return;
+        };
+        info_grid(ui, &v.info);
+    }
+
+    fn tf_section(&mut self, ui: &mut Ui) {
+        let current = self
+            .settings
+            .tf_preset
+            .clone()
+            .unwrap_or_else(|| "custom".into());
+        let mut chosen = None;
+        egui::ComboBox::from_label("Preset")
+            .selected_text(&current)
+            .show_ui(ui, |ui| {
+                for name in PRESET_NAMES {
+                    if ui.selectable_label(current == name, name).clicked() {
+                        chosen = Some(name);
+                    }
+                }
+            });
+        if let Some(name) = chosen {
+            self.set_tf_preset(name);
+        }
+        let histogram = self.volume.as_ref().map(|v| &v.histogram);
+        if self.tf_editor.show(ui, &mut self.settings.tf, histogram) {
+            self.settings.tf_preset = None;
+        }
+        self.controls_moving |= self.tf_editor.is_dragging();
+        ui.horizontal(|ui| {
+            let enabled = !self.dialogs.is_open();
+            if ui
+                .add_enabled(enabled, egui::Button::new("Load JSON…"))
+                .clicked()
+            {
+                self.show_dialog(Purpose::LoadTf);
+            }
+            if ui
+                .add_enabled(enabled, egui::Button::new("Save JSON…"))
+                .clicked()
+            {
+                self.show_dialog(Purpose::SaveTf);
+            }
+        });
+    }
+
+    fn render_section(&mut self, ui: &mut Ui) {
+        let s = &mut self.settings;
+        ui.horizontal(|ui| {
+            ui.label("Mode:");
+            for m in Mode::ALL {
+                ui.radio_value(&mut s.mode, m, m.label());
+            }
+        });
+        if s.mode == Mode::Iso {
+            let (lo, hi) = self
+                .volume
+                .as_ref()
+                .map_or((0.0, 255.0), |v| v.info.value_range);
+            let iso = egui::Slider::new(&mut s.iso_value, lo..=hi.max(lo + 1e-3)).text("Iso value");
+            self.controls_moving |= ui.add(iso).dragged();
+        }
+        ui.checkbox(&mut s.shading, "Shading (Phong)");
+        ui.horizontal(|ui| {
+            egui::ComboBox::from_label("Renderer")
+                .selected_text(s.renderer.name())
+                .show_ui(ui, |ui| {
+                    for r in RendererChoice::ALL {
+                        ui.selectable_value(&mut s.renderer, r, r.name());
+                    }
+                });
+        });
+        ui.add_enabled(
+            s.renderer != RendererChoice::Serial,
+            egui::Slider::new(&mut s.threads, 1..=max_threads()).text("Threads"),
+        );
+        ui.checkbox(&mut s.ert, "Early ray termination (ERT)");
+        ui.checkbox(&mut s.ess, "Empty-space skipping (ESS)");
+        ui.horizontal(|ui| {
+            ui.label("Step:");
+            ui.radio_value(&mut s.step, StepChoice::Fine, "Fine")
+                .on_hover_text("0.2 × the smallest voxel spacing");
+            ui.radio_value(&mut s.step, StepChoice::Coarse, "Coarse")
+                .on_hover_text("0.9 × the smallest voxel spacing");
+            ui.radio_value(&mut s.step, StepChoice::Adaptive, "Adaptive")
+                .on_hover_text(
+                    "Coarse and at half resolution while the camera moves, fine when it stops",
+                );
+        });
+        ui.horizontal(|ui| {
+            ui.label("Resolution:");
+            ui.radio_value(&mut s.resolution, ResolutionChoice::Canvas, "Canvas");
+            ui.radio_value(
+                &mut s.resolution,
+                ResolutionChoice::Fixed,
+                format!("Fixed {0}×{0}", s.fixed_size),
+            );
+        });
+        if s.resolution == ResolutionChoice::Fixed {
+            ui.add(egui::Slider::new(&mut s.fixed_size, 64..=2048).text("Fixed size"));
+        }
+    }
+
+    fn camera_section(&mut self, ui: &mut Ui) {
+        let c = &mut self.camera;
+        let (mut az, mut el, mut dist) = (c.azimuth, c.elevation, c.distance);
+        let a = ui.add(egui::Slider::new(&mut az, -180.0..=180.0).text("Azimuth °"));
+        let e = ui.add(egui::Slider::new(&mut el, -89.0..=89.0).text("Elevation °"));
+        let d = ui.add(
+            egui::Slider::new(&mut dist, c.min_distance()..=c.max_distance())
+                .logarithmic(true)
+                .text("Distance"),
+        );
+        if a.changed() || e.changed() {
+            c.set_angles(az, el);
+        }
+        if d.changed() {
+            c.set_distance(dist);
+        }
+        self.controls_moving |= a.dragged() || e.dragged() || d.dragged();
+        ui.horizontal(|ui| {
+            if ui
+                .button("Reset camera")
+                .on_hover_text("Also: double-click the canvas")
+                .clicked()
+            {
+                self.camera.reset();
+            }
+            let can_save = self.shown.is_some() && !self.dialogs.is_open();
+            if ui
+                .add_enabled(can_save, egui::Button::new("Save frame as PNG…"))
+                .clicked()
+            {
+                self.show_dialog(Purpose::SavePng);
+            }
+        });
+        ui.weak("Left drag: orbit · right drag: pan · wheel: zoom · double-click: reset");
+    }
+}
+
+/// A collapsible section, open by default.
+fn section(ui: &mut Ui, title: &str, body: impl FnOnce(&mut Ui)) {
+    ui.separator();
+    CollapsingHeader::new(title)
+        .default_open(true)
+        .show(ui, body);
+}
+
+/// The volume's facts as a two-column grid.
+fn info_grid(ui: &mut Ui, info: &VolumeInfo) {
+    let rows = [
+        // A long file name is shortened rather than widening the panel.
+        ("Name", ellipsize(&info.name, 32)),
+        (
+            "Dimensions",
+            format!("{} × {} × {}", info.dims.x, info.dims.y, info.dims.z),
+        ),
+        (
+            "Spacing",
+            format!(
+                "{} × {} × {}",
+                info.spacing.x, info.spacing.y, info.spacing.z
+            ),
+        ),
+        ("Type", info.sample_type.name().to_string()),
+        (
+            "Values",
+            format!(
+                "{} … {}",
+                format_value(info.value_range.0),
+                format_value(info.value_range.1)
+            ),
+        ),
+        (
+            "File size",
+            info.file_size.map_or("in memory".into(), bytes),
+        ),
+        ("Layout", info.layout.to_string()),
+        (
+            "Storage",
+            match info.storage {
+                StorageKind::Mapped => "memory-mapped".into(),
+                StorageKind::Ram => "in RAM".into(),
+            },
+        ),
+        (
+            "Load time",
+            format!("{:.0} ms", info.load_time.as_secs_f64() * 1e3),
+        ),
+    ];
+    egui::Grid::new("volume-info")
+        .num_columns(2)
+        .striped(true)
+        .show(ui, |ui| {
+            for (k, v) in rows {
+                ui.label(k);
+                ui.label(v);
+                ui.end_row();
+            }
+        });
+}
+
+/// `text` cut in the middle to at most `max` characters.
+fn ellipsize(text: &str, max: usize) -> String {
+    let chars: Vec<char> = text.chars().collect();
+    if chars.len() <= max {
+        return text.to_string();
+    }
+    let head = (max - 1) / 2;
+    let tail = max - 1 - head;
+    let mut s: String = chars[..head].iter().collect();
+    s.push('…');
+    s.extend(&chars[chars.len() - tail..]);
+    s
+}
+
+/// A byte count in binary units.
+fn bytes(n: u64) -> String {
+    const UNITS: [&str; 5] = ["B", "KiB", "MiB", "GiB", "TiB"];
+    let mut v = n as f64;
+    let mut u = 0;
+    while v >= 1024.0 && u + 1 < UNITS.len() {
+        v /= 1024.0;
+        u += 1;
+    }
+    if u == 0 {
+        format!("{n} B")
+    } else {
+        format!("{v:.1} {}", UNITS[u])
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    #[test]
+    fn long_names_are_cut_in_the_middle() {
+        assert_eq!(super::ellipsize("head.vol", 10), "head.vol");
+        let s = super::ellipsize("a_very_long_volume_name.vol", 11);
+        assert_eq!(s, "a_ver…e.vol");
+        assert_eq!(s.chars().count(), 11);
+    }
+
+    #[test]
+    fn bytes_use_binary_units() {
+        assert_eq!(super::bytes(26), "26 B");
+        assert_eq!(super::bytes(491_546), "480.0 KiB");
+        assert_eq!(super::bytes(3 << 30), "3.0 GiB");
+    }
+}

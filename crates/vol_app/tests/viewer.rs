@@ -1,0 +1,686 @@
+//! UI tests of the viewer: the real [`ViewerApp`] (real loading thread, real
+//! render thread) driven headlessly through `egui_kittest`, by the labels a
+//! user sees.
+
+use std::path::{Path, PathBuf};
+use std::sync::Arc;
+use std::time::{Duration, Instant};
+
+use egui::{Event, Modifiers, PointerButton};
+use egui_kittest::Harness;
+use egui_kittest::kittest::Queryable;
+use glam::{UVec3, Vec3};
+use raycaster::format::vol::{self, VolLayout};
+use raycaster::integrator::RenderMode;
+use raycaster::sample::SampleType;
+use raycaster::transfer::TransferFunction;
+use raycaster::volume::{Grid, LinearVolume};
+use vol_app::viewer::state::{Mode, RendererChoice, ResolutionChoice, StepChoice};
+use vol_app::viewer::{Settings, StartOptions, ViewerApp};
+
+const TIMEOUT: Duration = Duration::from_secs(25);
+
+type H = Harness<'static, Option<ViewerApp>>;
+
+/// A temporary directory removed at the end of the test.
+struct TempDir(PathBuf);
+
+impl TempDir {
+    fn new(tag: &str) -> Self {
+        let p = std::env::temp_dir().join(format!("vol_app_viewer_{tag}_{}", std::process::id()));
+        let _ = std::fs::remove_dir_all(&p);
+        std::fs::create_dir_all(&p).unwrap();
+        TempDir(p)
+    }
+    fn path(&self, name: &str) -> PathBuf {
+        self.0.join(name)
+    }
+}
+
+impl Drop for TempDir {
+    fn drop(&mut self) {
+        let _ = std::fs::remove_dir_all(&self.0);
+    }
+}
+
+/// A `dims` volume holding a ball of value 100 (inside the `shapes` TF's
+/// bands) and a smaller one of 200, written as a `.vol` file.
+fn volume_file(dir: &TempDir, name: &str, dims: UVec3, layout: VolLayout) -> PathBuf {
+    let c = (dims.as_vec3() - 1.0) * 0.5;
+    let r = dims.min_element() as f32 * 0.4;
+    let grid = Grid::new(dims, Vec3::ONE);
+    let v = LinearVolume::from_fn(grid, |p| {
+        let d = (p.as_vec3() - c).length();
+        if d < r * 0.4 {
+            200u8
+        } else if d < r {
+            100
+        } else {
+            0
+        }
+    });
+    let path = dir.path(name);
+    vol::write(&path, &v, layout).unwrap();
+    path
+}
+
+/// Settings that render quickly: a small fixed-size image, adaptive step.
+fn quick_settings() -> Settings {
+    Settings {
+        step: StepChoice::Adaptive,
+        resolution: ResolutionChoice::Fixed,
+        fixed_size: 240,
+        ..Settings::default()
+    }
+}
+
+fn harness(start: StartOptions, settings: Settings) -> H {
+    let mut h: H = Harness::builder()
+        .with_size(egui::vec2(1000.0, 1300.0))
+        .with_step_dt(1.0 / 60.0)
+        .build_ui_state(
+            |ui, app: &mut Option<ViewerApp>| {
+                if let Some(app) = app {
+                    app.show(ui);
+                }
+            },
+            None,
+        );
+    let ctx = h.ctx.clone();
+    *h.state_mut() = Some(ViewerApp::new(&ctx, settings, start));
+    h
+}
+
+fn app(h: &H) -> &ViewerApp {
+    h.state().as_ref().unwrap()
+}
+
+fn app_mut(h: &mut H) -> &mut ViewerApp {
+    h.state_mut().as_mut().unwrap()
+}
+
+/// Steps the UI until `cond` holds.
+fn step_until(h: &mut H, what: &str, cond: impl Fn(&ViewerApp) -> bool) {
+    let start = Instant::now();
+    loop {
+        h.step();
+        if cond(app(h)) {
+            return;
+        }
+        assert!(start.elapsed() < TIMEOUT, "timed out waiting for {what}");
+        std::thread::sleep(Duration::from_millis(3));
+    }
+}
+
+/// Steps until nothing is loading or rendering and a frame is on screen.
+fn settle(h: &mut H) {
+    step_until(h, "the viewer to settle", |a| {
+        !a.is_loading() && !a.is_rendering() && a.frames_received() > 0
+    });
+    // One more frame so that panels show the final state.
+    h.step();
+}
+
+/// Distinct RGB values in the frame on screen.
+fn distinct_colours(a: &ViewerApp) -> usize {
+    let f = &a.last_frame().expect("a frame").frame;
+    let mut seen: Vec<[u8; 3]> = f.rgb.chunks(3).map(|c| [c[0], c[1], c[2]]).collect();
+    seen.sort_unstable();
+    seen.dedup();
+    seen.len()
+}
+
+/// The frame on screen answers the newest request (nothing stale is shown).
+fn frame_is_current(a: &ViewerApp) -> bool {
+    match (a.last_frame(), a.last_request()) {
+        (Some(f), Some(r)) => f.camera == r.camera && f.preview == r.preview,
+        _ => false,
+    }
+}
+
+#[derive(Debug)]
+struct Dropped(PathBuf);
+
+impl egui::DroppedFile for Dropped {
+    fn path(&self) -> &Path {
+        &self.0
+    }
+    fn bytes(&self) -> Result<Vec<u8>, String> {
+        std::fs::read(&self.0).map_err(|e| e.to_string())
+    }
+}
+
+fn open_file(dir: &TempDir) -> (H, PathBuf) {
+    let path = volume_file(dir, "ball.vol", UVec3::new(40, 36, 32), VolLayout::Linear);
+    let mut h = harness(
+        StartOptions {
+            file: Some(path.clone()),
+            tf_preset: Some("shapes".into()),
+            tf: None,
+        },
+        quick_settings(),
+    );
+    settle(&mut h);
+    (h, path)
+}
+
+#[test]
+fn starts_on_the_demo_volume_and_renders_it() {
+    // The defaults: the render resolution follows the canvas.
+    let mut h = harness(StartOptions::default(), Settings::default());
+    let t = Instant::now();
+    settle(&mut h);
+    let a = app(&h);
+    let v = a.volume().expect("the demo volume");
+    assert_eq!(v.info.name, "built-in demo");
+    assert!(a.error().is_none());
+    assert_eq!(
+        a.settings().tf_preset.as_deref(),
+        Some(vol_app::demo::DEMO_TF)
+    );
+    assert!(
+        distinct_colours(a) > 50,
+        "the canvas is not a rendered volume"
+    );
+    assert!(frame_is_current(a));
+    eprintln!("demo: first full frame after {:?}", t.elapsed());
+    h.get_by_label("built-in demo");
+    h.get_by_label("160 × 160 × 160");
+    h.get_by_label_contains("samples");
+    let f = &app(&h).last_frame().unwrap().frame;
+    let canvas = h.get_by_label("Volume canvas").rect();
+    assert!(
+        canvas.width() > 500.0,
+        "the left panel leaves room for the canvas"
+    );
+    assert_eq!(
+        (f.width, f.height),
+        (
+            canvas.width().round() as u32,
+            canvas.height().round() as u32
+        ),
+        "the image follows the canvas"
+    );
+    // Every control a user can act on has a name (screen readers, tests).
+    h.check_accessibility();
+}
+
+#[test]
+fn opens_a_dropped_file_and_shows_its_information() {
+    let dir = TempDir::new("drop");
+    let (mut h, _) = open_file(&dir);
+    let before = app(&h).frames_received();
+    let bricked = volume_file(
+        &dir,
+        "bricked.vol",
+        UVec3::new(30, 26, 22),
+        VolLayout::Bricked { side: 8 },
+    );
+    h.input_mut()
+        .dropped_files
+        .push(Arc::new(Dropped(bricked.clone())));
+    step_until(&mut h, "the dropped file", |a| {
+        a.volume()
+            .is_some_and(|v| v.info.path.as_deref() == Some(bricked.as_path()))
+    });
+    settle(&mut h);
+    let a = app(&h);
+    let info = &a.volume().unwrap().info;
+    assert_eq!(info.dims, UVec3::new(30, 26, 22));
+    assert!(a.frames_received() > before);
+    assert!(frame_is_current(a));
+    assert!(distinct_colours(a) > 10);
+    for label in [
+        "bricked.vol",
+        "30 × 26 × 22",
+        "u8",
+        "0 … 200",
+        "bricked (B = 8)",
+        "memory-mapped",
+    ] {
+        h.get_by_label(label);
+    }
+    h.get_by_label_contains("KiB");
+}
+
+#[test]
+fn switching_tf_preset_and_mode_renders_new_frames() {
+    let dir = TempDir::new("tf_mode");
+    let (mut h, _) = open_file(&dir);
+    assert_eq!(app(&h).settings().tf_preset.as_deref(), Some("shapes"));
+    let first = app(&h).last_frame().unwrap().frame.rgb.clone();
+
+    h.get_by_label("Preset").click();
+    h.step();
+    h.step();
+    h.get_by_label("skull").click();
+    h.step();
+    let skull = TransferFunction::preset("skull", SampleType::U8).unwrap();
+    assert_eq!(app(&h).settings().tf, skull);
+    settle(&mut h);
+    let a = app(&h);
+    assert_eq!(a.last_request().unwrap().tf, skull);
+    assert!(frame_is_current(a));
+    assert_ne!(
+        a.last_frame().unwrap().frame.rgb,
+        first,
+        "the new TF changed nothing"
+    );
+
+    let n = app(&h).frames_received();
+    h.get_by_label("MIP").click();
+    h.step();
+    assert_eq!(app(&h).settings().mode, Mode::Mip);
+    settle(&mut h);
+    let a = app(&h);
+    assert_eq!(a.last_request().unwrap().options.mode, RenderMode::Mip);
+    assert!(a.frames_received() > n);
+    assert!(frame_is_current(a));
+
+    // Iso mode shows its slider.
+    h.get_by_label("Iso").click();
+    h.step();
+    settle(&mut h);
+    assert!(h.query_all_by_label("Iso value").count() > 0);
+    assert_eq!(
+        app(&h).last_request().unwrap().options.mode,
+        RenderMode::Iso
+    );
+}
+
+#[test]
+fn ert_and_ess_toggles_reach_the_renderer() {
+    let dir = TempDir::new("ert_ess");
+    let (mut h, _) = open_file(&dir);
+    let opts = |h: &H| app(h).last_request().unwrap().options.clone();
+    assert!(opts(&h).ert && opts(&h).ess);
+    let samples_with = app(&h).last_frame().unwrap().frame.stats.samples;
+
+    h.get_by_label("Early ray termination (ERT)").click();
+    h.step();
+    settle(&mut h);
+    assert!(!app(&h).settings().ert);
+    assert!(!opts(&h).ert && opts(&h).ess);
+
+    h.get_by_label("Empty-space skipping (ESS)").click();
+    h.step();
+    settle(&mut h);
+    assert!(!opts(&h).ert && !opts(&h).ess);
+    assert!(frame_is_current(app(&h)));
+    let samples_without = app(&h).last_frame().unwrap().frame.stats.samples;
+    assert!(
+        samples_without > samples_with,
+        "turning ERT and ESS off should take more samples ({samples_without} vs {samples_with})"
+    );
+
+    // The renderer choice reaches the status line.
+    h.get_by_label("Renderer").click();
+    h.step();
+    h.step();
+    h.get_by_label("serial").click();
+    h.step();
+    settle(&mut h);
+    assert_eq!(app(&h).settings().renderer, RendererChoice::Serial);
+    assert_eq!(app(&h).last_frame().unwrap().renderer, "serial");
+    h.get_by_label_contains("serial ×1");
+}
+
+#[test]
+fn dragging_on_the_canvas_orbits_pans_and_renders_new_frames() {
+    let dir = TempDir::new("drag");
+    let (mut h, _) = open_file(&dir);
+    let canvas = h.get_by_label("Volume canvas").rect();
+    let cam0 = *app(&h).camera();
+    let n0 = app(&h).frames_received();
+
+    // Left drag: orbit, with preview frames while the button is down.
+    let p0 = canvas.center();
+    h.event(Event::PointerMoved(p0));
+    h.event(Event::PointerButton {
+        pos: p0,
+        button: PointerButton::Primary,
+        pressed: true,
+        modifiers: Modifiers::NONE,
+    });
+    let mut p = p0;
+    for _ in 0..6 {
+        p += egui::vec2(15.0, 5.0);
+        h.event(Event::PointerMoved(p));
+    }
+    h.step();
+    let during = app(&h).last_request().unwrap().clone();
+    assert!(during.preview, "a moving camera should get preview frames");
+    assert!(
+        during.options.step.unwrap() > 0.5,
+        "preview frames use the coarse step"
+    );
+    h.event(Event::PointerButton {
+        pos: p,
+        button: PointerButton::Primary,
+        pressed: false,
+        modifiers: Modifiers::NONE,
+    });
+    settle(&mut h);
+    let a = app(&h);
+    let cam1 = *a.camera();
+    assert!(
+        cam1.azimuth < cam0.azimuth - 20.0,
+        "{} -> {}",
+        cam0.azimuth,
+        cam1.azimuth
+    );
+    assert!(cam1.elevation > cam0.elevation);
+    assert_eq!(cam1.target, cam0.target);
+    assert!(a.frames_received() > n0);
+    assert!(frame_is_current(a));
+    assert!(
+        !a.last_frame().unwrap().preview,
+        "full quality once the drag ends"
+    );
+    let f = a.last_frame().unwrap();
+    assert_eq!(
+        f.camera.position,
+        cam1.camera(f.frame.width, f.frame.height).position
+    );
+
+    // Right drag: pan.
+    let n1 = a.frames_received();
+    h.event(Event::PointerMoved(p0));
+    h.event(Event::PointerButton {
+        pos: p0,
+        button: PointerButton::Secondary,
+        pressed: true,
+        modifiers: Modifiers::NONE,
+    });
+    for k in 1..=5 {
+        h.event(Event::PointerMoved(p0 + egui::vec2(-10.0 * k as f32, 0.0)));
+    }
+    h.event(Event::PointerButton {
+        pos: p0 + egui::vec2(-50.0, 0.0),
+        button: PointerButton::Secondary,
+        pressed: false,
+        modifiers: Modifiers::NONE,
+    });
+    settle(&mut h);
+    let a = app(&h);
+    assert_ne!(a.camera().target, cam1.target, "right drag pans");
+    assert_eq!(a.camera().azimuth, cam1.azimuth);
+    assert!(a.frames_received() > n1);
+    assert!(frame_is_current(a));
+
+    // Wheel: zoom in.
+    let d = a.camera().distance;
+    h.event(Event::PointerMoved(p0));
+    h.event(Event::MouseWheel {
+        unit: egui::MouseWheelUnit::Point,
+        delta: egui::vec2(0.0, 120.0),
+        phase: egui::TouchPhase::Move,
+        source: egui::MouseWheelSource::Unknown,
+        modifiers: Modifiers::NONE,
+    });
+    settle(&mut h);
+    step_until(&mut h, "the zoom to settle", |a| {
+        !a.is_rendering() && !a.last_request().unwrap().preview
+    });
+    assert!(app(&h).camera().distance < d, "the wheel zooms in");
+
+    // Reset camera.
+    h.get_by_label("Reset camera").click();
+    h.step();
+    assert_eq!(*app(&h).camera(), cam0);
+}
+
+#[test]
+fn a_corrupt_file_shows_an_error_and_keeps_the_volume() {
+    let dir = TempDir::new("corrupt");
+    let (mut h, good) = open_file(&dir);
+    let frames = app(&h).frames_received();
+    let corrupt = dir.path("corrupt.vol");
+    std::fs::write(&corrupt, b"not a volume at all").unwrap();
+
+    // Through the path field and its Load button.
+    h.get_by_label("Path:")
+        .set_text_value_accesskit(&corrupt.display().to_string());
+    h.step();
+    h.get_by_label("Load").click();
+    h.step();
+    assert!(app(&h).is_loading() || app(&h).error().is_some());
+    step_until(&mut h, "the load to fail", |a| !a.is_loading());
+    h.step();
+    let a = app(&h);
+    let err = a.error().expect("an error is shown").to_string();
+    assert!(err.contains("corrupt.vol"), "{err}");
+    assert_eq!(
+        a.volume().unwrap().info.path.as_deref(),
+        Some(good.as_path())
+    );
+    assert!(a.last_frame().is_some());
+    h.get_by_label_contains("corrupt.vol");
+    h.get_by_label("ball.vol");
+
+    // A header that promises more bytes than the file holds.
+    let truncated = dir.path("truncated.vol");
+    let bytes = std::fs::read(&good).unwrap();
+    std::fs::write(&truncated, &bytes[..bytes.len() / 2]).unwrap();
+    app_mut(&mut h).open(&truncated);
+    step_until(&mut h, "the load to fail", |a| !a.is_loading());
+    h.step();
+    let err = app(&h).error().unwrap().to_string();
+    assert!(err.contains("truncated.vol"), "{err}");
+    assert_eq!(
+        app(&h).volume().unwrap().info.path.as_deref(),
+        Some(good.as_path())
+    );
+
+    // The app keeps working: dismiss the error, change the mode, get a frame.
+    h.get_by_label("Dismiss").click();
+    h.step();
+    assert!(app(&h).error().is_none());
+    h.get_by_label("X-ray").click();
+    h.step();
+    settle(&mut h);
+    assert!(app(&h).frames_received() > frames);
+    assert!(frame_is_current(app(&h)));
+}
+
+#[test]
+fn a_bad_file_argument_falls_back_to_the_demo_with_an_error() {
+    let mut h = harness(
+        StartOptions {
+            file: Some("/nonexistent/head.vol".into()),
+            ..Default::default()
+        },
+        Settings {
+            resolution: ResolutionChoice::Fixed,
+            fixed_size: 96,
+            ..Settings::default()
+        },
+    );
+    settle(&mut h);
+    let a = app(&h);
+    assert!(a.error().unwrap().contains("/nonexistent/head.vol"));
+    assert_eq!(a.volume().unwrap().info.name, "built-in demo");
+    assert_eq!(a.last_frame().unwrap().frame.width, 96);
+}
+
+#[test]
+fn the_tf_editor_adds_points_and_the_tf_round_trips_through_json() {
+    let dir = TempDir::new("tf_edit");
+    let (mut h, _) = open_file(&dir);
+    let n = app(&h).settings().tf.points.len();
+    let curve = h.get_by_label("Transfer function curve").rect();
+    // Double-click empty space high up in the curve area: a new point.
+    let at = curve.left_top() + egui::vec2(curve.width() * 0.2, 20.0);
+    for _ in 0..2 {
+        for pressed in [true, false] {
+            h.event(Event::PointerButton {
+                pos: at,
+                button: PointerButton::Primary,
+                pressed,
+                modifiers: Modifiers::NONE,
+            });
+        }
+    }
+    h.event(Event::PointerMoved(at));
+    h.step();
+    h.step();
+    let s = app(&h).settings();
+    assert_eq!(s.tf.points.len(), n + 1, "double-click adds a point");
+    assert_eq!(s.tf_preset, None, "an edited TF is no longer the preset");
+    assert!(s.tf.points.windows(2).all(|w| w[0].value <= w[1].value));
+    h.get_by_label_contains("Point 1 of");
+    settle(&mut h);
+    assert_eq!(app(&h).last_request().unwrap().tf, app(&h).settings().tf);
+
+    // Drag the last-but-one point up and to the left: higher opacity, lower
+    // value, never past its neighbour; previews while the point moves.
+    let k = app(&h).settings().tf.points.len() - 2;
+    let before = app(&h).settings().tf.points[k];
+    let start = app(&h).tf_editor().point_positions()[k];
+    h.event(Event::PointerMoved(start));
+    h.event(Event::PointerButton {
+        pos: start,
+        button: PointerButton::Primary,
+        pressed: true,
+        modifiers: Modifiers::NONE,
+    });
+    let mut p = start;
+    for _ in 0..5 {
+        p += egui::vec2(-6.0, -8.0);
+        h.event(Event::PointerMoved(p));
+    }
+    h.step();
+    assert!(app(&h).tf_editor().is_dragging());
+    assert!(
+        app(&h).last_request().unwrap().preview,
+        "TF drags render previews"
+    );
+    h.event(Event::PointerButton {
+        pos: p,
+        button: PointerButton::Primary,
+        pressed: false,
+        modifiers: Modifiers::NONE,
+    });
+    settle(&mut h);
+    let tf = &app(&h).settings().tf;
+    assert!(tf.points[k].opacity > before.opacity);
+    assert!(tf.points[k].value < before.value);
+    assert!(tf.points[k].value >= tf.points[k - 1].value);
+    assert!(!app(&h).last_request().unwrap().preview);
+    assert_eq!(app(&h).last_frame().unwrap().frame.width, 240);
+
+    let json = dir.path("tf.json");
+    app_mut(&mut h).save_tf_file(&json).unwrap();
+    let saved = app(&h).settings().tf.clone();
+    app_mut(&mut h).set_tf_preset("ramp");
+    assert_ne!(app(&h).settings().tf, saved);
+    app_mut(&mut h).load_tf_file(&json).unwrap();
+    assert_eq!(app(&h).settings().tf, saved);
+    assert!(
+        app_mut(&mut h)
+            .load_tf_file(&dir.path("missing.json"))
+            .is_err()
+    );
+
+    let png = dir.path("frame.png");
+    app_mut(&mut h).save_frame_png(&png).unwrap();
+    let bytes = std::fs::read(&png).unwrap();
+    assert_eq!(&bytes[..8], b"\x89PNG\r\n\x1a\n");
+}
+
+#[test]
+fn the_ui_keeps_running_while_a_slow_frame_renders() {
+    let dir = TempDir::new("slow");
+    let (mut h, _) = open_file(&dir);
+    // One thread, a fine step and a large image: a slow frame.
+    {
+        let s = app_mut(&mut h).settings_mut();
+        s.renderer = RendererChoice::Serial;
+        s.resolution = ResolutionChoice::Fixed;
+        s.fixed_size = 1400;
+        s.step = StepChoice::Fine;
+        s.ert = false;
+        s.ess = false;
+    }
+    h.step();
+    assert!(app(&h).is_rendering());
+    let mut slowest = Duration::ZERO;
+    let mut steps_while_rendering = 0;
+    let start = Instant::now();
+    while app(&h).is_rendering() && steps_while_rendering < 30 {
+        let t = Instant::now();
+        h.step();
+        slowest = slowest.max(t.elapsed());
+        steps_while_rendering += 1;
+        std::thread::sleep(Duration::from_millis(5));
+    }
+    assert!(
+        steps_while_rendering >= 5,
+        "the frame finished too fast to tell ({:?})",
+        start.elapsed()
+    );
+    assert!(
+        slowest < Duration::from_millis(250),
+        "a UI frame took {slowest:?}"
+    );
+}
+
+/// eframe storage in memory.
+#[derive(Default)]
+struct MemStorage(std::collections::HashMap<String, String>);
+
+impl eframe::Storage for MemStorage {
+    fn get_string(&self, key: &str) -> Option<String> {
+        self.0.get(key).cloned()
+    }
+    fn set_string(&mut self, key: &str, value: String) {
+        self.0.insert(key.into(), value);
+    }
+    fn remove_string(&mut self, key: &str) {
+        self.0.remove(key);
+    }
+    fn flush(&mut self) {}
+}
+
+#[test]
+fn settings_persist_through_eframe_storage() {
+    let dir = TempDir::new("persist");
+    let (mut h, path) = open_file(&dir);
+    h.get_by_label("MIP").click();
+    h.get_by_label("Empty-space skipping (ESS)").click();
+    h.step();
+    h.get_by_label("Coarse").click();
+    h.step();
+    let mut storage = MemStorage::default();
+    eframe::App::save(app_mut(&mut h), &mut storage);
+    let restored = Settings::load(Some(&storage));
+    assert_eq!(&restored, app(&h).settings());
+    assert_eq!(restored.mode, Mode::Mip);
+    assert!(!restored.ess);
+    assert_eq!(restored.step, StepChoice::Coarse);
+    assert_eq!(restored.last_dir.as_deref(), path.parent());
+    assert_eq!(Settings::load(None), Settings::default());
+}
+
+#[test]
+fn long_file_names_do_not_widen_the_panel() {
+    let dir = TempDir::new("a_rather_long_directory_name_without_any_spaces_in_it");
+    let name = "a_volume_file_with_a_rather_long_name_that_must_not_widen_the_panel.vol";
+    let path = volume_file(&dir, name, UVec3::new(20, 20, 20), VolLayout::Linear);
+    let mut h = harness(
+        StartOptions {
+            file: Some(path),
+            ..Default::default()
+        },
+        quick_settings(),
+    );
+    settle(&mut h);
+    h.run_steps(5);
+    assert_eq!(app(&h).volume().unwrap().info.name, name);
+    assert!(h.query_all_by_label_contains("the_panel.vol").count() > 0);
+    let canvas = h.get_by_label("Volume canvas").rect();
+    assert!(
+        canvas.left() < 400.0,
+        "the left panel grew: canvas {canvas:?}"
+    );
+}

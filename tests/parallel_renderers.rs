@@ -1,0 +1,474 @@
+//! The parallel renderers against the serial one (SPEC §5: every renderer
+//! takes the same samples, so the images agree).
+//!
+//! Every scene — linear and bricked volumes, cameras outside, grazing,
+//! orthographic and inside the volume, every mode, ERT and ESS on and off,
+//! shading on and off — is rendered by `SerialRenderer`, by `TiledRenderer`
+//! and by `ObjectRenderer` in several configurations (1–3 render threads,
+//! with and without compositing threads, tiny to large bricks and tiles).
+//!
+//! The tiled renderer integrates each ray whole, exactly as the serial one:
+//! its images must be identical. The object renderer integrates a ray brick
+//! by brick; it takes the same samples, but where a run of equal-valued
+//! samples is composited in closed form across a brick face, the run is
+//! evaluated in two pieces, which can move a channel by a rounding step. The
+//! check is PSNR >= 50 dB per image and at most 2 levels anywhere; the
+//! worst figures are printed (`--nocapture`).
+
+mod common;
+
+use std::sync::atomic::AtomicBool;
+
+use common::{TestLayout, compare_images, make_pair, phantom};
+use glam::Vec3;
+use raycaster::prelude::*;
+
+const MIN_PSNR: f64 = 50.0;
+const MAX_LEVELS: u8 = 2;
+
+/// Library cameras around, beside and inside a box.
+fn cameras(scene: &Scene) -> Vec<(&'static str, Camera)> {
+    let b = scene.grid().bounds();
+    let c = b.center();
+    let diag = (b.max - b.min).length();
+    let at = |off: Vec3| c + off * diag;
+    let mut v = Vec::new();
+    v.push(("front", Camera::look_at(at(Vec3::Z), c, 40, 32)));
+    let mut oblique = Camera::look_at(at(Vec3::new(0.7, 0.5, 0.8)), c, 44, 44);
+    oblique.fov_y_deg = 38.0;
+    oblique.up = Vec3::new(0.1, 1.0, 0.0);
+    v.push(("oblique", oblique));
+    // Down the x axis from the far side, image rows along the box's faces.
+    let mut axis = Camera::look_at(at(Vec3::new(-1.2, 0.0, 0.0)), c, 36, 30);
+    axis.fov_y_deg = 50.0;
+    v.push(("axis", axis));
+    // Close up: the box overflows the image.
+    let mut close = Camera::look_at(
+        at(Vec3::new(0.1, 0.05, 0.45)),
+        c + Vec3::new(2.0, -1.0, 0.0),
+        48,
+        40,
+    );
+    close.fov_y_deg = 70.0;
+    v.push(("close-up", close));
+    // Inside, near a corner, looking across: t_in = 0 for every ray and
+    // bricks all around the eye.
+    let inner = |u: Vec3| b.min + u * (b.max - b.min);
+    let mut inside = Camera::look_at(
+        inner(Vec3::new(0.8, 0.2, 0.85)),
+        inner(Vec3::new(0.4, 0.5, 0.3)),
+        48,
+        48,
+    );
+    inside.fov_y_deg = 90.0;
+    v.push(("inside", inside));
+    // Inside, in the middle, looking along -z (axis-aligned rays).
+    let mut centre = Camera::look_at(
+        c + Vec3::new(0.3, 0.2, 0.1),
+        c + Vec3::new(0.3, 0.2, -5.0),
+        40,
+        40,
+    );
+    centre.fov_y_deg = 100.0;
+    v.push(("inside-centre", centre));
+    let mut ortho = Camera::look_at(at(Vec3::new(0.6, 0.45, 1.0)), c, 40, 32);
+    ortho.projection = Projection::Orthographic;
+    ortho.fov_y_deg = 30.0;
+    v.push(("ortho", ortho));
+    let mut ortho_inside = Camera::look_at(c, c + Vec3::new(-1.0, 0.3, -0.2), 40, 32);
+    ortho_inside.projection = Projection::Orthographic;
+    ortho_inside.fov_y_deg = 60.0;
+    v.push(("ortho-inside", ortho_inside));
+    v
+}
+
+/// A linear TF that lets rays go deep (so bricks far from the eye matter)
+/// and a step TF that stops them early.
+fn tfs() -> Vec<(&'static str, TransferFunction)> {
+    let p = |value: f32, color: [f32; 3], opacity: f32| TfPoint {
+        value,
+        color,
+        opacity,
+    };
+    let soft = TransferFunction::new(
+        Interpolation::Linear,
+        vec![
+            p(20.0, [0.2, 0.4, 1.0], 0.0),
+            p(120.0, [1.0, 0.8, 0.3], 0.08),
+            p(250.0, [1.0, 1.0, 1.0], 0.5),
+        ],
+    )
+    .expect("TF");
+    let hard = TransferFunction::new(
+        Interpolation::Step,
+        vec![
+            p(100.0, [0.9, 0.3, 0.2], 0.4),
+            p(150.0, [0.2, 0.9, 0.3], 1.0),
+            p(230.0, [1.0, 1.0, 1.0], 0.0),
+        ],
+    )
+    .expect("TF");
+    vec![("soft", soft), ("hard", hard)]
+}
+
+/// The parallel renderers under test, by name.
+fn parallel_renderers() -> Vec<(String, AnyRenderer)> {
+    let mut v: Vec<(String, AnyRenderer)> = vec![
+        (
+            "tiles t2 s7".into(),
+            AnyRenderer::Tiles(TiledRenderer::new(2, 7).expect("tiles")),
+        ),
+        (
+            "object default".into(),
+            AnyRenderer::new(RendererKind::Object, 2).expect("object"),
+        ),
+    ];
+    for (r, c, tile, brick, order) in [
+        (1, 0, 16, 8, TaskOrder::TileFirst),
+        (2, 1, 5, 4, TaskOrder::TileFirst),
+        (3, 0, 9, 7, TaskOrder::Queue),
+        (2, 0, 64, 100, TaskOrder::Queue),
+    ] {
+        v.push((
+            format!("object r{r} c{c} t{tile} b{brick} {order:?}"),
+            AnyRenderer::Object(
+                ObjectRenderer::with_config(ObjectConfig {
+                    render_threads: r,
+                    composite_threads: c,
+                    tile,
+                    brick,
+                    order,
+                })
+                .expect("object"),
+            ),
+        ));
+    }
+    v
+}
+
+struct Worst {
+    psnr: f64,
+    max: u8,
+    identical: usize,
+    total: usize,
+    scene: String,
+}
+
+#[test]
+fn parallel_renderers_match_serial() {
+    let volumes = [
+        (
+            "linear 40x34x30",
+            [40, 34, 30],
+            [1.0, 1.0, 1.0],
+            TestLayout::Linear,
+        ),
+        (
+            "bricked(8) 40x34x30",
+            [40, 34, 30],
+            [1.0, 1.0, 1.0],
+            TestLayout::Bricked(8),
+        ),
+        (
+            "bricked(5) 23x17x31 aniso",
+            [23, 17, 31],
+            [1.0, 0.5, 2.0],
+            TestLayout::Bricked(5),
+        ),
+    ];
+    let modes = [
+        (RenderMode::Dvr, 0.0),
+        (RenderMode::Mip, 0.0),
+        (RenderMode::Avg, 0.0),
+        (RenderMode::Iso, 120.0),
+    ];
+    let mut renderers = parallel_renderers();
+    let mut worst: Vec<Worst> = renderers
+        .iter()
+        .map(|_| Worst {
+            psnr: f64::INFINITY,
+            max: 0,
+            identical: 0,
+            total: 0,
+            scene: String::new(),
+        })
+        .collect();
+    let mut serial = SerialRenderer::new();
+    let mut scenes = 0;
+    let mut lit = 0;
+    for (vname, dims, spacing, layout) in volumes {
+        let pair = make_pair(dims, spacing, layout, phantom(dims));
+        let scene = &pair.scene;
+        for (cname, camera) in cameras(scene) {
+            for (tname, tf) in tfs() {
+                for (mode, iso) in modes {
+                    // ERT only changes DVR; the TF only colours the other
+                    // modes' result, so one TF is enough for them.
+                    if mode != RenderMode::Dvr && tname != "soft" {
+                        continue;
+                    }
+                    let switches: &[(bool, bool, bool)] = if mode == RenderMode::Dvr {
+                        &[
+                            (true, true, false),
+                            (false, true, false),
+                            (true, false, false),
+                            (false, false, false),
+                            (true, true, true),
+                        ]
+                    } else {
+                        &[(true, true, false), (true, false, false)]
+                    };
+                    for &(ert, ess, shading) in switches {
+                        let options = RenderOptions {
+                            mode,
+                            step: Some(0.45),
+                            ert,
+                            ess,
+                            shading,
+                            iso_value: iso,
+                            background: Vec3::new(0.1, 0.2, 0.3),
+                            ..RenderOptions::default()
+                        };
+                        let name = format!(
+                            "{vname} {cname} {tname} {} ert={ert} ess={ess} shading={shading}",
+                            mode.name()
+                        );
+                        let want = serial
+                            .render(scene, &camera, &tf, &options)
+                            .unwrap_or_else(|e| panic!("{name}: serial: {e}"));
+                        scenes += 1;
+                        let bg = [26u8, 51, 77];
+                        if want.rgb.chunks_exact(3).any(|p| p != bg) {
+                            lit += 1;
+                        }
+                        for ((rname, r), w) in renderers.iter_mut().zip(&mut worst) {
+                            let got = r
+                                .render(scene, &camera, &tf, &options)
+                                .unwrap_or_else(|e| panic!("{name}: {rname}: {e}"));
+                            assert_eq!((got.width, got.height), (want.width, want.height));
+                            assert_eq!(got.stats.rays, want.stats.rays, "{name}: {rname}");
+                            if r.kind() == RendererKind::Tiles {
+                                assert_eq!(got.rgb, want.rgb, "{name}: {rname} differs");
+                                assert_eq!(got.stats.samples, want.stats.samples);
+                            }
+                            let d = compare_images(&got.rgb, &want.rgb, MAX_LEVELS);
+                            assert!(
+                                d.psnr >= MIN_PSNR && d.max <= MAX_LEVELS,
+                                "{name}: {rname}: {d}"
+                            );
+                            w.total += 1;
+                            if d.max == 0 {
+                                w.identical += 1;
+                            }
+                            if d.psnr < w.psnr || d.max > w.max {
+                                w.psnr = w.psnr.min(d.psnr);
+                                w.max = w.max.max(d.max);
+                                w.scene = name.clone();
+                            }
+                        }
+                    }
+                }
+            }
+        }
+    }
+    // Nearly every scene shows something (a few inside views may look into
+    // empty space).
+    assert!(
+        lit * 10 >= scenes * 9,
+        "only {lit} of {scenes} scenes are lit"
+    );
+    println!("{scenes} scenes, {lit} lit");
+    for ((name, _), w) in renderers.iter().zip(&worst) {
+        println!(
+            "{name:<28} identical {}/{}, lowest PSNR {:.1} dB, max diff {} ({})",
+            w.identical, w.total, w.psnr, w.max, w.scene
+        );
+    }
+}
+
+/// A volume with large empty regions, a thin shell and a dense core: brick
+/// culling (ESS), the occupied-cell footprints and ERT across bricks all
+/// matter. Rendered larger than the scenes above.
+#[test]
+fn object_renderer_on_a_sparse_volume() {
+    let dims = [72, 64, 80];
+    let f = move |x: u32, y: u32, z: u32| -> u8 {
+        let p = Vec3::new(x as f32, y as f32, z as f32);
+        let c = Vec3::new(36.0, 30.0, 44.0);
+        let r = (p - c).length();
+        if r < 10.0 {
+            230
+        } else if (22.0..24.5).contains(&r) {
+            140
+        } else if x.is_multiple_of(23) && y.is_multiple_of(19) {
+            // Thin rods along z.
+            200
+        } else {
+            0
+        }
+    };
+    for layout in [TestLayout::Linear, TestLayout::Bricked(16)] {
+        let pair = make_pair(dims, [1.0, 1.0, 1.0], layout, f);
+        let scene = &pair.scene;
+        let tf = TransferFunction::preset("skull", SampleType::U8).expect("preset");
+        let mut soft = tf.clone();
+        soft.points[0].opacity = 0.05;
+        for (cname, camera) in cameras(scene) {
+            let camera = Camera {
+                width: camera.width * 3 / 2,
+                height: camera.height * 3 / 2,
+                ..camera
+            };
+            for tf in [&tf, &soft] {
+                for (ert, ess) in [(true, true), (false, false)] {
+                    let options = RenderOptions {
+                        step: Some(0.5),
+                        ert,
+                        ess,
+                        ..RenderOptions::default()
+                    };
+                    let want = SerialRenderer::new()
+                        .render(scene, &camera, tf, &options)
+                        .expect("serial");
+                    for brick in [0, 6, 40] {
+                        let mut r = ObjectRenderer::with_config(ObjectConfig {
+                            render_threads: 2,
+                            composite_threads: 0,
+                            tile: 12,
+                            brick,
+                            order: if brick == 6 {
+                                TaskOrder::Queue
+                            } else {
+                                TaskOrder::TileFirst
+                            },
+                        })
+                        .expect("object");
+                        let got = r.render(scene, &camera, tf, &options).expect("object");
+                        let d = compare_images(&got.rgb, &want.rgb, MAX_LEVELS);
+                        assert!(
+                            d.psnr >= MIN_PSNR && d.max <= MAX_LEVELS,
+                            "{layout:?} {cname} brick {brick} ert={ert} ess={ess}: {d}"
+                        );
+                    }
+                }
+            }
+        }
+    }
+}
+
+/// A raised cancel flag stops every renderer: `Ok(None)`, no frame.
+#[test]
+fn cancelled_frames_are_not_delivered() {
+    let dims = [40, 34, 30];
+    let pair = make_pair(dims, [1.0; 3], TestLayout::Linear, phantom(dims));
+    let camera = Camera::framing(&pair.scene.grid().bounds(), 64, 64, 45.0);
+    let tf = TransferFunction::preset("skull", SampleType::U8).expect("preset");
+    let flag = AtomicBool::new(true);
+    for kind in RendererKind::ALL {
+        let mut r = AnyRenderer::new(kind, 2).expect("renderer");
+        let got = r
+            .render_cancellable(
+                &pair.scene,
+                &camera,
+                &tf,
+                &RenderOptions::default(),
+                Cancel::flag(&flag),
+            )
+            .expect("render");
+        assert!(got.is_none(), "{kind:?} delivered a cancelled frame");
+        let got = r
+            .render_cancellable(
+                &pair.scene,
+                &camera,
+                &tf,
+                &RenderOptions::default(),
+                Cancel::never(),
+            )
+            .expect("render");
+        assert!(got.is_some(), "{kind:?} delivered no frame");
+    }
+}
+
+/// Invalid settings are errors, not panics.
+#[test]
+fn bad_configurations_are_errors() {
+    let bad = ObjectRenderer::with_config(ObjectConfig {
+        render_threads: 0,
+        composite_threads: 1,
+        tile: 16,
+        brick: 0,
+        order: TaskOrder::TileFirst,
+    });
+    assert!(bad.is_err());
+    let dims = [8, 8, 8];
+    let pair = make_pair(dims, [1.0; 3], TestLayout::Linear, phantom(dims));
+    let camera = Camera::look_at(Vec3::splat(3.0), Vec3::splat(3.0), 8, 8);
+    let tf = TransferFunction::preset("skull", SampleType::U8).expect("preset");
+    for kind in RendererKind::ALL {
+        let mut r = AnyRenderer::new(kind, 2).expect("renderer");
+        assert!(
+            r.render(&pair.scene, &camera, &tf, &RenderOptions::default())
+                .is_err(),
+            "{kind:?}: degenerate camera accepted"
+        );
+        let options = RenderOptions {
+            step: Some(-1.0),
+            ..RenderOptions::default()
+        };
+        let ok_camera = Camera::framing(&pair.scene.grid().bounds(), 8, 8, 45.0);
+        assert!(r.render(&pair.scene, &ok_camera, &tf, &options).is_err());
+    }
+}
+
+/// A frame cancelled while it renders stops early: well before the time the
+/// whole frame takes.
+#[test]
+fn cancellation_stops_a_frame_in_progress() {
+    use std::sync::atomic::Ordering;
+    use std::time::{Duration, Instant};
+    let dims = [64, 64, 64];
+    let pair = make_pair(dims, [1.0; 3], TestLayout::Bricked(16), phantom(dims));
+    let scene = &pair.scene;
+    let b = scene.grid().bounds();
+    let mut camera = Camera::look_at(
+        b.center() + Vec3::new(40.0, 50.0, 90.0),
+        b.center(),
+        160,
+        160,
+    );
+    camera.fov_y_deg = 50.0;
+    let mut tf = TransferFunction::preset("skull", SampleType::U8).expect("preset");
+    tf.points[0].opacity = 0.02;
+    let options = RenderOptions {
+        step: Some(0.1),
+        ert: false,
+        ess: false,
+        ..RenderOptions::default()
+    };
+    for kind in RendererKind::ALL {
+        let mut r = AnyRenderer::new(kind, 2).expect("renderer");
+        let start = Instant::now();
+        r.render(scene, &camera, &tf, &options).expect("render");
+        let full = start.elapsed();
+        let flag = AtomicBool::new(false);
+        let start = Instant::now();
+        let got = std::thread::scope(|s| {
+            s.spawn(|| {
+                std::thread::sleep(full / 10);
+                flag.store(true, Ordering::Relaxed);
+            });
+            r.render_cancellable(scene, &camera, &tf, &options, Cancel::flag(&flag))
+                .expect("render")
+        });
+        let cancelled = start.elapsed();
+        assert!(got.is_none(), "{kind:?}: a cancelled frame was delivered");
+        println!(
+            "{kind:?}: full frame {full:?}, cancelled after {:?} in {cancelled:?}",
+            full / 10
+        );
+        assert!(
+            cancelled < full / 2 + Duration::from_millis(20),
+            "{kind:?}: cancelling took {cancelled:?} of a {full:?} frame"
+        );
+    }
+}
