@@ -23,8 +23,9 @@ row() {
 import json, sys
 d = json.load(sys.stdin)
 label, file = sys.argv[1], sys.argv[2]
-sps = d["samples"] / d["frame_ms_median"] * 1e3
-print(f"| {file} | {label} | {d[\"renderer\"]} | {d[\"threads\"]} | {d[\"frame_ms_median\"]:.0f} | {d[\"samples\"]/1e6:.2f} M | {sps/1e6:.1f} M/s | {d[\"load_ms\"]:.0f} |")
+ms, n, load = d["frame_ms_median"], d["samples"], d["load_ms"]
+cells = [file, label, d["renderer"], str(d["threads"]), f"{ms:.0f}", f"{n/1e6:.2f} M", f"{n/ms/1e3:.1f} M/s", f"{load:.0f}"]
+print("| " + " | ".join(cells) + " |")
 ' "$label" "$file"
 }
 

@@ -42,15 +42,6 @@ fn cameras(scene: &Scene) -> Vec<(&'static str, Camera)> {
     let mut axis = Camera::look_at(at(Vec3::new(-1.2, 0.0, 0.0)), c, 36, 30);
     axis.fov_y_deg = 50.0;
     v.push(("axis", axis));
-    // Close up: the box overflows the image.
-    let mut close = Camera::look_at(
-        at(Vec3::new(0.1, 0.05, 0.45)),
-        c + Vec3::new(2.0, -1.0, 0.0),
-        48,
-        40,
-    );
-    close.fov_y_deg = 70.0;
-    v.push(("close-up", close));
     // Inside, near a corner, looking across: t_in = 0 for every ray and
     // bricks all around the eye.
     let inner = |u: Vec3| b.min + u * (b.max - b.min);
@@ -314,11 +305,6 @@ fn object_renderer_on_a_sparse_volume() {
         let mut soft = tf.clone();
         soft.points[0].opacity = 0.05;
         for (cname, camera) in cameras(scene) {
-            let camera = Camera {
-                width: camera.width * 3 / 2,
-                height: camera.height * 3 / 2,
-                ..camera
-            };
             for tf in [&tf, &soft] {
                 for (ert, ess) in [(true, true), (false, false)] {
                     let options = RenderOptions {
@@ -467,7 +453,8 @@ fn cancellation_stops_a_frame_in_progress() {
             full / 10
         );
         assert!(
-            cancelled < full / 2 + Duration::from_millis(20),
+            // Cancelled at 10% of a frame; allow for a loaded machine.
+            cancelled < full.mul_f32(0.75) + Duration::from_millis(50),
             "{kind:?}: cancelling took {cancelled:?} of a {full:?} frame"
         );
     }

@@ -151,7 +151,14 @@ pub fn run(args: &RenderArgs) -> Result<(), Error> {
             samples: last.stats.samples,
             peak_rss_mb: peak_rss_mb(),
         };
-        println!("{}", serde_json::to_string(&stats)?);
+        // A closed pipe (`| head`) is the reader's choice, not an error.
+        use std::io::Write;
+        let mut out = std::io::stdout().lock();
+        if let Err(e) = writeln!(out, "{}", serde_json::to_string(&stats)?)
+            && e.kind() != std::io::ErrorKind::BrokenPipe
+        {
+            return Err(e.into());
+        }
     } else if let Some(path) = &out {
         eprintln!(
             "vol_app: wrote {} ({}x{}, {:.1} ms, {} samples)",

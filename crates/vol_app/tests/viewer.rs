@@ -619,8 +619,10 @@ fn the_ui_keeps_running_while_a_slow_frame_renders() {
         "the frame finished too fast to tell ({:?})",
         start.elapsed()
     );
+    // Generous for loaded CI machines: a UI that waited for the frame would
+    // stall for the frame's whole duration (seconds), not for a fraction.
     assert!(
-        slowest < Duration::from_millis(250),
+        slowest < Duration::from_millis(1000),
         "a UI frame took {slowest:?}"
     );
 }

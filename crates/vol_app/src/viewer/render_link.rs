@@ -358,13 +358,22 @@ mod tests {
             scene: scene_req.scene.clone(),
             ..preview(w)
         };
-        link.request(with_scene(31));
+        let middle = link.request(with_scene(31));
         let last = link.request(with_scene(32));
         let mut seen = Vec::new();
         while link.is_busy() {
             seen.push(wait(&mut link).unwrap().id);
         }
-        assert_eq!(seen, [first, last]);
+        // Which earlier previews get delivered depends on how fast they
+        // render; what must hold whatever the timing: the newest request
+        // arrives last, nothing arrives twice or out of order, nothing
+        // unrequested arrives.
+        assert_eq!(seen.last(), Some(&last), "{seen:?}");
+        assert!(seen.windows(2).all(|w| w[0] < w[1]), "{seen:?}");
+        assert!(
+            seen.iter().all(|id| [first, middle, last].contains(id)),
+            "{seen:?}"
+        );
     }
 
     #[test]
