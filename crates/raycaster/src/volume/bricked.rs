@@ -3,10 +3,7 @@
 
 use glam::{UVec3, Vec3};
 
-use super::{
-    CellPos, Corners, Grid, Layout, Volume, Wings, cell_value_ranges_by_rows, load_corners,
-    load_wings, split_coord, stencil_inside,
-};
+use super::{Grid, Layout, Volume, cell_value_ranges_by_rows};
 use crate::error::{Error, Result};
 use crate::sample::Sample;
 use crate::storage::{Storage, StorageKind};
@@ -224,30 +221,7 @@ impl<S: Sample> Volume for BrickedVolume<S> {
         self.data.as_slice()[self.index(v)]
     }
 
-    #[inline(always)]
-    fn locate(&self, p: Vec3) -> CellPos {
-        let (x, fx) = split_coord(p.x, self.max_coord.x, self.last.x);
-        let (y, fy) = split_coord(p.y, self.max_coord.y, self.last.y);
-        let (z, fz) = split_coord(p.z, self.max_coord.z, self.last.z);
-        CellPos {
-            cell: UVec3::new(x, y, z),
-            frac: Vec3::new(fx, fy, fz),
-        }
-    }
-
-    #[inline(always)]
-    fn corners(&self, cell: UVec3) -> Corners {
-        load_corners(self.data.as_slice(), self.index(cell), self.stride)
-    }
-
-    #[inline(always)]
-    fn wings(&self, cell: UVec3) -> Option<Wings> {
-        if !stencil_inside(cell, self.grid.dims) {
-            return None;
-        }
-        let [xo, yo, zo] = self.stencil_offsets(cell);
-        Some(load_wings(self.data.as_slice(), xo, yo, zo))
-    }
+    cell_access!();
 
     fn value_range(&self, lo: UVec3, hi: UVec3) -> (S, S) {
         let hi = hi.min(self.grid.dims - UVec3::ONE);

@@ -7,6 +7,39 @@
 //! both reduce a trilinear lookup to "a base index and three strides", so the
 //! hot loop is the same code, monomorphised per layout and sample type.
 
+/// The `locate`, `corners` and `wings` methods of [`Volume`] for a layout
+/// type with fields `grid`, `data`, `stride`, `max_coord`, `last` and methods
+/// `index(UVec3)` and `stencil_offsets(UVec3)`: the layouts differ only in
+/// those two address computations.
+macro_rules! cell_access {
+    () => {
+        #[inline(always)]
+        fn locate(&self, p: Vec3) -> super::CellPos {
+            let (x, fx) = super::split_coord(p.x, self.max_coord.x, self.last.x);
+            let (y, fy) = super::split_coord(p.y, self.max_coord.y, self.last.y);
+            let (z, fz) = super::split_coord(p.z, self.max_coord.z, self.last.z);
+            super::CellPos {
+                cell: UVec3::new(x, y, z),
+                frac: Vec3::new(fx, fy, fz),
+            }
+        }
+
+        #[inline(always)]
+        fn corners(&self, cell: UVec3) -> super::Corners {
+            super::load_corners(self.data.as_slice(), self.index(cell), self.stride)
+        }
+
+        #[inline(always)]
+        fn wings(&self, cell: UVec3) -> Option<super::Wings> {
+            if !super::stencil_inside(cell, self.grid.dims) {
+                return None;
+            }
+            let [xo, yo, zo] = self.stencil_offsets(cell);
+            Some(super::load_wings(self.data.as_slice(), xo, yo, zo))
+        }
+    };
+}
+
 mod any;
 mod bricked;
 mod grid;
