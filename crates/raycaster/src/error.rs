@@ -107,6 +107,12 @@ pub enum FormatError {
         /// How the expected count was derived.
         detail: String,
     },
+    /// A header field is missing, malformed or inconsistent.
+    #[error("{0}")]
+    Invalid(String),
+    /// A valid file uses a feature this reader does not support.
+    #[error("unsupported: {0}")]
+    Unsupported(String),
     /// The format is not recognised.
     #[error("unrecognised volume format ({0})")]
     Unrecognised(String),

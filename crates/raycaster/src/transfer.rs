@@ -141,7 +141,28 @@ impl TransferFunction {
 
     /// A named preset for data of `sample_type` (the `ramp` preset spans the
     /// type's range), or `None` for an unknown name. See [`PRESET_NAMES`].
+    /// `mr-default` assumes a typical brightest value for the type; use
+    /// [`TransferFunction::preset_for_data`] when the data is at hand.
     pub fn preset(name: &str, sample_type: SampleType) -> Option<Self> {
+        Self::preset_for_data(name, sample_type, (0.0, mr_scale(sample_type)))
+    }
+
+    /// A named preset fitted to data of `sample_type` whose values span
+    /// `value_range`. Only `mr-default` uses the range: MR intensities have
+    /// no physical unit, so its control points sit at fixed fractions of the
+    /// brightest value (tuned on the FLAIR, MNI152 and DICOM MRI data in
+    /// ../shared/data). The CT presets are in Hounsfield units and `ramp`
+    /// spans the type (SPEC §4).
+    pub fn preset_for_data(
+        name: &str,
+        sample_type: SampleType,
+        value_range: (f32, f32),
+    ) -> Option<Self> {
+        let bright = if value_range.1.is_finite() && value_range.1 > value_range.0.max(0.0) {
+            value_range.1
+        } else {
+            mr_scale(sample_type)
+        };
         use Interpolation::*;
         let (interpolation, points) = match name {
             "shapes" => (
@@ -177,29 +198,32 @@ impl TransferFunction {
                     pt(2000.0, [1.0, 1.0, 0.97], 1.0),
                 ],
             ),
-            // Skin faint, muscle and organs reddish, bone white.
+            // Skin faint, fat clear, muscle and organs a thin red veil,
+            // contrast-filled vessels brighter, bone white (tuned on a
+            // contrast chest CT and a head CT, see README "Formats").
             "ct-soft" => (
                 Linear,
                 vec![
-                    pt(-600.0, rgb255(180, 120, 100), 0.0),
-                    pt(-400.0, rgb255(220, 160, 130), 0.02),
-                    pt(-100.0, rgb255(220, 160, 130), 0.0),
+                    pt(-700.0, rgb255(200, 140, 115), 0.0),
+                    pt(-400.0, rgb255(220, 160, 130), 0.01),
+                    pt(-150.0, rgb255(220, 160, 130), 0.0),
                     pt(20.0, rgb255(190, 60, 50), 0.0),
-                    pt(60.0, rgb255(200, 70, 55), 0.15),
-                    pt(250.0, rgb255(230, 210, 180), 0.4),
+                    pt(60.0, rgb255(200, 70, 55), 0.03),
+                    pt(150.0, rgb255(225, 120, 90), 0.08),
+                    pt(300.0, rgb255(240, 220, 190), 0.5),
                     pt(1000.0, [1.0, 1.0, 0.95], 0.9),
                 ],
             ),
-            // MR intensities are unitless; this preset assumes a 0..~1000 scale
-            // is typical after scanner scaling and hides the noise floor.
+            // MR intensities are unitless: fractions of the brightest value;
+            // the lowest 8% (noise floor, air) stays transparent.
             "mr-default" => (
                 Linear,
                 vec![
                     pt(0.0, [0.0; 3], 0.0),
-                    pt(0.08 * mr_scale(sample_type), rgb255(120, 90, 80), 0.0),
-                    pt(0.25 * mr_scale(sample_type), rgb255(220, 170, 140), 0.15),
-                    pt(0.6 * mr_scale(sample_type), rgb255(250, 235, 220), 0.5),
-                    pt(mr_scale(sample_type), [1.0; 3], 0.8),
+                    pt(0.08 * bright, rgb255(120, 90, 80), 0.0),
+                    pt(0.25 * bright, rgb255(220, 170, 140), 0.15),
+                    pt(0.6 * bright, rgb255(250, 235, 220), 0.5),
+                    pt(bright, [1.0; 3], 0.8),
                 ],
             ),
             _ => return None,

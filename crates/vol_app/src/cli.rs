@@ -43,6 +43,77 @@ pub struct ViewerArgs {
 pub enum Command {
     /// Render a volume to a PNG without a window, optionally timing it.
     Render(RenderArgs),
+    /// Describe a volume file: format, dimensions, sample type, spacing,
+    /// value range, orientation as stored, size on disk and in memory.
+    Info(InfoArgs),
+}
+
+/// `vol_app info FILE`.
+#[derive(Debug, Args)]
+pub struct InfoArgs {
+    /// Volume file or DICOM directory.
+    pub file: PathBuf,
+    /// Print one JSON object instead of text.
+    #[arg(long)]
+    pub json: bool,
+    /// How to read a headerless file.
+    #[command(flatten)]
+    pub raw: RawArgs,
+}
+
+/// Raw sample order.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, clap::ValueEnum)]
+pub enum RawOrder {
+    /// x changes fastest: index = (z·Y + y)·X + x (most published raw data).
+    Xfast,
+    /// z changes fastest: index = (x·Y + y)·Z + z (the .vol order).
+    Zfast,
+}
+
+/// The description of a headerless (raw) file (SPEC §6).
+#[derive(Debug, Clone, Args)]
+#[command(next_help_heading = "Raw files (no header)")]
+pub struct RawArgs {
+    /// Read FILE as raw samples with these dimensions (needs --raw-type).
+    #[arg(long, value_name = "X,Y,Z", value_parser = parse_dims, requires = "raw_type")]
+    pub raw_dims: Option<glam::UVec3>,
+    /// Raw sample type: u8, i8, u16le, u16be, i16le, i16be, f32le, f32be.
+    #[arg(long, value_name = "TYPE", value_parser = parse_raw_type, requires = "raw_dims")]
+    pub raw_type: Option<(raycaster::sample::SampleType, raycaster::format::Endian)>,
+    /// Raw voxel spacing.
+    #[arg(long, value_name = "SX,SY,SZ", value_parser = parse_vec3, default_value = "1,1,1", requires = "raw_dims")]
+    pub raw_spacing: Vec3,
+    /// Bytes to skip at the start of a raw file.
+    #[arg(long, value_name = "BYTES", default_value_t = 0, requires = "raw_dims")]
+    pub raw_offset: u64,
+    /// Which axis changes fastest in a raw file.
+    #[arg(long, value_enum, default_value_t = RawOrder::Xfast, requires = "raw_dims")]
+    pub raw_order: RawOrder,
+}
+
+impl RawArgs {
+    /// The library's open options for these arguments.
+    pub fn open_options(
+        &self,
+        mode: raycaster::storage::LoadMode,
+    ) -> raycaster::format::OpenOptions {
+        use raycaster::volume::AxisOrder;
+        let raw = match (self.raw_dims, self.raw_type) {
+            (Some(dims), Some((sample, endian))) => Some(raycaster::format::RawOptions {
+                dims,
+                sample,
+                endian,
+                spacing: self.raw_spacing,
+                offset: self.raw_offset,
+                order: match self.raw_order {
+                    RawOrder::Xfast => AxisOrder::XFast,
+                    RawOrder::Zfast => AxisOrder::ZFast,
+                },
+            }),
+            _ => None,
+        };
+        raycaster::format::OpenOptions { mode, raw }
+    }
 }
 
 /// `on` or `off`.
@@ -103,7 +174,9 @@ volumes/800shapes_block16.vol --size 700x700 --camera-pos 1100,1100,1100 --look-
 --step 0.2 --tf-preset shapes --repeat 5 --stats"
 )]
 pub struct RenderArgs {
-    /// Volume file (.vol). Without it, the built-in demo volume is rendered.
+    /// Volume file (.vol, .nrrd, .nhdr, .nii, .nii.gz, a DICOM directory or
+    /// file, UC Davis .vol, or raw with --raw-dims/--raw-type). Without it,
+    /// the built-in demo volume is rendered.
     pub file: Option<PathBuf>,
     /// Output PNG (RGB8). Default: out.png, unless --stats is given.
     #[arg(long, value_name = "PNG")]
@@ -192,6 +265,9 @@ pub struct RenderArgs {
     /// volume's own choice).
     #[arg(long, value_name = "N", value_parser = clap::value_parser!(u32).range(1..=1024))]
     pub macrocell: Option<u32>,
+    /// How to read a headerless file.
+    #[command(flatten)]
+    pub raw: RawArgs,
 }
 
 /// Parses the command line; on error prints one line (or the help text) and
@@ -237,6 +313,25 @@ fn parse_vec3(s: &str) -> Result<Vec3, String> {
         }
     }
     Ok(Vec3::from_array(v))
+}
+
+fn parse_dims(s: &str) -> Result<glam::UVec3, String> {
+    let parts: Vec<&str> = s.split(',').map(str::trim).collect();
+    let v: Vec<u32> = parts
+        .iter()
+        .map(|p| p.parse::<u32>().ok().filter(|&d| d >= 1))
+        .collect::<Option<_>>()
+        .filter(|v: &Vec<u32>| v.len() == 3)
+        .ok_or_else(|| format!("expected three positive integers X,Y,Z, got '{s}'"))?;
+    Ok(glam::UVec3::new(v[0], v[1], v[2]))
+}
+
+fn parse_raw_type(
+    s: &str,
+) -> Result<(raycaster::sample::SampleType, raycaster::format::Endian), String> {
+    raycaster::format::RawOptions::parse_type(s).ok_or_else(|| {
+        format!("unknown raw type '{s}' (known: u8, i8, u16le, u16be, i16le, i16be, f32le, f32be)")
+    })
 }
 
 fn parse_size(s: &str) -> Result<(u32, u32), String> {

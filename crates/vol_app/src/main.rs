@@ -5,6 +5,7 @@
 //! [`vol_app::viewer`]).
 
 mod cli;
+mod info_cmd;
 mod render_cmd;
 mod stats;
 
@@ -35,6 +36,7 @@ fn main() -> ExitCode {
     };
     let result = match cli.command {
         Some(cli::Command::Render(args)) => render_cmd::run(&args),
+        Some(cli::Command::Info(args)) => info_cmd::run(&args),
         None => run_viewer(cli.viewer),
     };
     match result {

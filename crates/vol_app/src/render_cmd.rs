@@ -20,7 +20,7 @@ pub fn run(args: &RenderArgs) -> Result<(), Error> {
         LoadMode::Map
     };
     let volume = match &args.file {
-        Some(path) => raycaster::format::open(path, mode)?,
+        Some(path) => raycaster::format::open_file(path, &args.raw.open_options(mode))?.volume,
         None => AnyVolume::from(crate::demo::demo_volume()),
     };
     let sample_type = volume.sample_type();
@@ -32,12 +32,16 @@ pub fn run(args: &RenderArgs) -> Result<(), Error> {
 
     let tf = match (&args.tf, &args.tf_preset) {
         (Some(path), _) => TransferFunction::from_json_file(path)?,
-        (None, Some(name)) => TransferFunction::preset(name, sample_type).ok_or_else(|| {
-            format!(
-                "unknown transfer function preset '{name}' (known: {})",
-                PRESET_NAMES.join(", ")
-            )
-        })?,
+        (None, Some(name)) => {
+            TransferFunction::preset_for_data(name, sample_type, scene.value_range()).ok_or_else(
+                || {
+                    format!(
+                        "unknown transfer function preset '{name}' (known: {})",
+                        PRESET_NAMES.join(", ")
+                    )
+                },
+            )?
+        }
         (None, None) => {
             let name = if args.file.is_some() {
                 "ramp"

@@ -327,3 +327,143 @@ fn viewer_arguments_are_checked_before_a_window_opens() {
     let out = bin().arg("--tf").arg(&bad_tf).output().unwrap();
     assert_one_line_error(&out, "bad_viewer.json");
 }
+
+/// A file of the shared test data (../shared/data next to the repository,
+/// or `$RAYCASTER_DATA`), or `None` with a note when it is not on this machine.
+fn shared_data(rel: &str) -> Option<PathBuf> {
+    let roots = [
+        std::env::var_os("RAYCASTER_DATA").map(PathBuf::from),
+        Some(PathBuf::from(concat!(
+            env!("CARGO_MANIFEST_DIR"),
+            "/../../../shared/data"
+        ))),
+        Some(PathBuf::from("/work/shared/data")),
+    ];
+    let found = roots
+        .into_iter()
+        .flatten()
+        .map(|r| r.join(rel))
+        .find(|p| p.exists());
+    if found.is_none() {
+        eprintln!("SKIPPED: {rel} not found (set RAYCASTER_DATA to the shared data directory)");
+    }
+    found
+}
+
+#[test]
+fn info_describes_a_real_nrrd_file_as_text_and_json() {
+    let Some(flair) = shared_data("mri_flair_nrrd/FLAIR.nrrd") else {
+        return;
+    };
+    let out = bin().arg("info").arg(&flair).output().unwrap();
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let text = String::from_utf8_lossy(&out.stdout);
+    for needle in [
+        "NRRD",
+        "124 x 160 x 140",
+        "u8, gzip",
+        "space directions",
+        "0 .. 255",
+    ] {
+        assert!(text.contains(needle), "'{needle}' not in:\n{text}");
+    }
+    let out = bin().args(["info", "--json"]).arg(&flair).output().unwrap();
+    assert!(out.status.success());
+    let v: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
+    assert_eq!(v["dims"], serde_json::json!([124, 160, 140]));
+    assert_eq!(v["stored_type"], "u8");
+    assert_eq!(v["encoding"], "gzip");
+    assert_eq!(v["file_bytes"], std::fs::metadata(&flair).unwrap().len());
+    let out = bin()
+        .args(["info", "/nonexistent/head.nii.gz"])
+        .output()
+        .unwrap();
+    assert_one_line_error(&out, "/nonexistent/head.nii.gz");
+}
+
+#[test]
+fn raw_options_read_headerless_files_in_either_order() {
+    let dir = TempDir::new("raw");
+    let vol_file = ball_file(&dir, VolLayout::Linear);
+    // The .vol's samples are z fastest: the same bytes as a raw z-fast file.
+    let bytes = std::fs::read(&vol_file).unwrap();
+    let raw_z = write_bytes(&dir, "ball_z.raw", &bytes[26..]);
+    // And transposed to x fastest, as 16-bit big-endian.
+    let mut xfast = Vec::new();
+    for z in 0..24 {
+        for y in 0..24 {
+            for x in 0..24 {
+                let v = bytes[26 + (x * 24 + y) * 24 + z] as u16;
+                xfast.extend_from_slice(&v.to_be_bytes());
+            }
+        }
+    }
+    let raw_x = write_bytes(&dir, "ball_x.bin", &xfast);
+    let render = |file: &PathBuf, extra: &[&str], png: &str| {
+        let out_png = dir.path(png);
+        let out = bin()
+            .arg("render")
+            .arg(file)
+            .args(["--size", "32x32", "--tf-preset", "skull", "--out"])
+            .arg(&out_png)
+            .args(extra)
+            .output()
+            .unwrap();
+        assert!(
+            out.status.success(),
+            "{}",
+            String::from_utf8_lossy(&out.stderr)
+        );
+        std::fs::read(out_png).unwrap()
+    };
+    let want = render(&vol_file, &[], "vol.png");
+    let z = render(
+        &raw_z,
+        &[
+            "--raw-dims",
+            "24,24,24",
+            "--raw-type",
+            "u8",
+            "--raw-order",
+            "zfast",
+        ],
+        "z.png",
+    );
+    let x = render(
+        &raw_x,
+        &["--raw-dims", "24,24,24", "--raw-type", "u16be"],
+        "x.png",
+    );
+    assert_eq!(z, want, "z-fast raw differs from the .vol");
+    assert_eq!(x, want, "x-fast u16be raw differs from the .vol");
+    // Wrong dimensions: the error says what was expected and found.
+    let out = bin()
+        .arg("render")
+        .arg(&raw_z)
+        .args([
+            "--raw-dims",
+            "24,24,25",
+            "--raw-type",
+            "u8",
+            "--size",
+            "8x8",
+        ])
+        .output()
+        .unwrap();
+    assert_one_line_error(&out, "expected 14400 bytes");
+    assert_one_line_error(&out, "ball_z.raw");
+    let out = bin()
+        .arg("render")
+        .arg(&raw_z)
+        .args(["--raw-dims", "24,24,24", "--raw-type", "u12"])
+        .output()
+        .unwrap();
+    assert_one_line_error(&out, "unknown raw type 'u12'");
+    // A .raw without a description says how to give one.
+    let out = bin().arg("info").arg(&raw_z).output().unwrap();
+    assert_one_line_error(&out, "--raw-dims");
+}

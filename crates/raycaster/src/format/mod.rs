@@ -1,53 +1,274 @@
-//! Volume file formats: parsing headers and bringing samples into memory.
+//! Volume file formats: detecting them, parsing headers and bringing samples
+//! into memory.
 //!
-//! [`open`] detects the format from the file's content and extension and
-//! returns an [`AnyVolume`], the runtime-typed handle that the command-line
-//! tools use; library users who know their format can call the format
-//! module's own `open` and get a concretely typed volume.
+//! [`open_file`] detects the format from the file's content and extension
+//! and returns the volume as an [`AnyVolume`] (its sample type known only at
+//! run time) plus a [`VolumeInfo`] describing what the file stores. Each
+//! format has its own module; all but `.vol` describe their samples with a
+//! [`SampleLayout`] and leave the decoding to [`samples`], so byte order,
+//! axis order, memory mapping and rescaling are handled once.
+//!
+//! | module | files |
+//! |---|---|
+//! | [`vol`] | the 26-byte-header `.vol` of SPEC §1, linear or bricked |
+//! | [`davis`] | the UC Davis `.vol` (28-byte big-endian header) |
+//! | [`nrrd`] | `.nrrd`, `.nhdr` + detached data; raw or gzip |
+//! | [`nifti`] | NIfTI-1 `.nii`, `.nii.gz` |
+//! | [`dicom`] | a directory (or one file) of a DICOM series |
+//! | [`raw`] | headerless samples described on the command line |
+//!
+//! ```no_run
+//! use raycaster::format::{open_file, OpenOptions};
+//! let opened = open_file("head.nii.gz".as_ref(), &OpenOptions::default())?;
+//! println!("{} {:?} {}", opened.info.format, opened.info.dims, opened.info.stored_type);
+//! let scene = raycaster::scene::Scene::new(opened.volume);
+//! # Ok::<(), raycaster::Error>(())
+//! ```
 
+pub mod davis;
+pub mod dicom;
+pub mod nifti;
+pub mod nrrd;
+pub mod raw;
+pub mod samples;
 pub mod vol;
 
 use std::path::Path;
 
+use glam::{UVec3, Vec3};
+
+pub use raw::RawOptions;
+pub use samples::{Endian, Rescale, SampleLayout};
+
 use crate::error::{Error, FormatError, Result};
+use crate::sample::SampleType;
 use crate::storage::LoadMode;
 use crate::volume::AnyVolume;
 
 /// The formats this build can read.
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
 pub enum FileFormat {
     /// The 26-byte-header `.vol` format of SPEC §1.
     Vol,
+    /// The UC Davis `.vol` format (28-byte big-endian header).
+    DavisVol,
+    /// NRRD (`.nrrd`, or `.nhdr` with detached data).
+    Nrrd,
+    /// NIfTI-1 (`.nii`, `.nii.gz`).
+    Nifti,
+    /// A DICOM series.
+    Dicom,
+    /// Headerless samples described by [`RawOptions`].
+    Raw,
+}
+
+impl FileFormat {
+    /// A short human-readable name.
+    pub fn name(self) -> &'static str {
+        match self {
+            FileFormat::Vol => ".vol (SPEC §1)",
+            FileFormat::DavisVol => "UC Davis .vol",
+            FileFormat::Nrrd => "NRRD",
+            FileFormat::Nifti => "NIfTI-1",
+            FileFormat::Dicom => "DICOM series",
+            FileFormat::Raw => "raw",
+        }
+    }
+}
+
+impl std::fmt::Display for FileFormat {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.write_str(self.name())
+    }
+}
+
+/// How to open a file.
+#[derive(Debug, Clone, Default, PartialEq)]
+pub struct OpenOptions {
+    /// Map or read into RAM, where the data can be used as stored.
+    pub mode: LoadMode,
+    /// The description of a headerless file; when given, the file is read as
+    /// raw whatever its extension.
+    pub raw: Option<RawOptions>,
+}
+
+/// What a file stores, as its header says (before any conversion).
+#[derive(Debug, Clone, PartialEq)]
+pub struct VolumeInfo {
+    /// The format detected.
+    pub format: FileFormat,
+    /// Samples per axis.
+    pub dims: UVec3,
+    /// Spacing per axis (world units, usually mm).
+    pub spacing: Vec3,
+    /// The sample type in the file (the volume may hold another one after a
+    /// rescale: see [`VolumeInfo::rescale`]).
+    pub stored_type: SampleType,
+    /// Byte order of multi-byte samples (`None` for 1-byte types).
+    pub byte_order: Option<Endian>,
+    /// How the samples are encoded: `raw`, `gzip`, `bricked (B = 16)`, ...
+    pub encoding: String,
+    /// `value = stored·slope + intercept`, when not the identity.
+    pub rescale: Option<Rescale>,
+    /// The orientation as stored (NRRD space directions, NIfTI q/sform, DICOM
+    /// orientation), reported but not applied (SPEC §7).
+    pub orientation: Option<String>,
+    /// Anything else the user should know (e.g. "4-D file: volume 1 of 3").
+    pub notes: Vec<String>,
+    /// The imaging modality when the file says (DICOM `Modality`: `CT`,
+    /// `MR`, ...), to pick a fitting transfer function.
+    pub modality: Option<String>,
+    /// Bytes on disk (all files of a series or detached header).
+    pub file_bytes: u64,
+}
+
+impl VolumeInfo {
+    /// A description with the fields every reader knows; the optional ones
+    /// empty.
+    pub fn new(format: FileFormat, layout: &SampleLayout, encoding: &str, file_bytes: u64) -> Self {
+        VolumeInfo {
+            format,
+            dims: layout.dims,
+            spacing: layout.spacing,
+            stored_type: layout.sample,
+            byte_order: (layout.sample.size() > 1).then_some(layout.endian),
+            encoding: encoding.to_string(),
+            rescale: None,
+            orientation: None,
+            notes: Vec::new(),
+            modality: None,
+            file_bytes,
+        }
+    }
+}
+
+/// An opened volume and the description of its file.
+#[derive(Debug)]
+pub struct Opened {
+    /// The samples, ready to render.
+    pub volume: AnyVolume,
+    /// What the file stores.
+    pub info: VolumeInfo,
 }
 
 /// Guesses the format of `path` from its extension and first bytes.
 pub fn detect(path: &Path) -> Result<FileFormat> {
     let meta = std::fs::metadata(path).map_err(|e| Error::io(path, e))?;
     if meta.is_dir() {
-        return Err(Error::format(
-            path,
-            FormatError::Unrecognised("a directory; DICOM series are not supported yet".into()),
-        ));
+        return Ok(FileFormat::Dicom);
     }
-    let ext = path
-        .extension()
-        .map(|e| e.to_string_lossy().to_ascii_lowercase())
+    let name = path
+        .file_name()
+        .map(|n| n.to_string_lossy().to_ascii_lowercase())
         .unwrap_or_default();
-    match ext.as_str() {
-        "vol" | "" => Ok(FileFormat::Vol),
+    let head = read_head(path, 352)?;
+    if head.starts_with(b"NRRD000") {
+        return Ok(FileFormat::Nrrd);
+    }
+    if nifti::looks_like(&head) || name.ends_with(".nii.gz") || name.ends_with(".hdr") {
+        return Ok(FileFormat::Nifti);
+    }
+    if dicom::looks_like(&head) {
+        return Ok(FileFormat::Dicom);
+    }
+    let ext = name.rsplit_once('.').map(|(_, e)| e).unwrap_or("");
+    match ext {
+        "nrrd" | "nhdr" => Ok(FileFormat::Nrrd),
+        "nii" => Ok(FileFormat::Nifti),
+        "dcm" | "ima" => Ok(FileFormat::Dicom),
+        "vol" | "" => {
+            // Two formats share the extension: the header whose implied
+            // length matches the file decides.
+            if vol::header_matches(&head, meta.len()) {
+                Ok(FileFormat::Vol)
+            } else if davis::header_matches(&head, meta.len()) {
+                Ok(FileFormat::DavisVol)
+            } else {
+                // Let the .vol reader say what is wrong with the header.
+                Ok(FileFormat::Vol)
+            }
+        }
+        "raw" | "bin" | "dat" | "img" => Err(Error::format(
+            path,
+            FormatError::Unrecognised(format!(
+                "a .{ext} file has no header: describe it with --raw-dims and --raw-type"
+            )),
+        )),
         other => Err(Error::format(
             path,
-            FormatError::Unrecognised(format!("extension .{other}; supported: .vol")),
+            FormatError::Unrecognised(format!(
+                "extension .{other}; supported: .vol, .nrrd, .nhdr, .nii, .nii.gz, .dcm or a DICOM directory, raw with --raw-dims/--raw-type"
+            )),
         )),
     }
 }
 
-/// Opens a volume file of any supported format.
-pub fn open(path: &Path, mode: LoadMode) -> Result<AnyVolume> {
-    match detect(path)? {
-        FileFormat::Vol => Ok(match vol::open(path, mode)? {
-            vol::VolVolume::Linear(v) => AnyVolume::from(v),
-            vol::VolVolume::Bricked(v) => AnyVolume::from(v),
-        }),
+/// Opens a volume file of any supported format, as described in the module
+/// documentation.
+pub fn open_file(path: &Path, options: &OpenOptions) -> Result<Opened> {
+    if let Some(raw) = &options.raw {
+        return raw::open(path, raw, options.mode);
     }
+    match detect(path)? {
+        FileFormat::Vol => vol::open_with_info(path, options.mode),
+        FileFormat::DavisVol => davis::open(path, options.mode),
+        FileFormat::Nrrd => nrrd::open(path, options.mode),
+        FileFormat::Nifti => nifti::open(path, options.mode),
+        FileFormat::Dicom => dicom::open(path),
+        FileFormat::Raw => Err(Error::InvalidArgument(format!(
+            "{}: raw files need --raw-dims and --raw-type",
+            path.display()
+        ))),
+    }
+}
+
+/// Opens a volume file of any supported format (see [`open_file`]) and
+/// returns just the volume.
+pub fn open(path: &Path, mode: LoadMode) -> Result<AnyVolume> {
+    open_file(
+        path,
+        &OpenOptions {
+            mode,
+            ..OpenOptions::default()
+        },
+    )
+    .map(|o| o.volume)
+}
+
+/// Up to `n` first bytes of `path`.
+fn read_head(path: &Path, n: usize) -> Result<Vec<u8>> {
+    use std::io::Read;
+    let file = std::fs::File::open(path).map_err(|e| Error::io(path, e))?;
+    let mut head = Vec::with_capacity(n);
+    file.take(n as u64)
+        .read_to_end(&mut head)
+        .map_err(|e| Error::io(path, e))?;
+    Ok(head)
+}
+
+/// Size of `path` in bytes.
+fn file_len(path: &Path) -> Result<u64> {
+    Ok(std::fs::metadata(path)
+        .map_err(|e| Error::io(path, e))?
+        .len())
+}
+
+/// Decompresses a gzip stream fully, with `expected` as a capacity hint
+/// and an upper bound: a stream that inflates past it is cut there (the
+/// caller then reports a length mismatch) instead of filling memory.
+fn gunzip(path: &Path, compressed: impl std::io::Read, expected: u64) -> Result<Vec<u8>> {
+    use std::io::Read;
+    // The header's size is only a hint: a tiny corrupt stream may claim
+    // terabytes, so reserve at most 256 MB up front and grow from there.
+    let mut out = Vec::with_capacity(usize::try_from(expected).unwrap_or(0).min(1 << 28));
+    flate2::read::MultiGzDecoder::new(compressed)
+        .take(expected.saturating_add(1))
+        .read_to_end(&mut out)
+        .map_err(|e| {
+            Error::format(
+                path,
+                FormatError::Invalid(format!("gzip data is corrupt or truncated ({e})")),
+            )
+        })?;
+    Ok(out)
 }

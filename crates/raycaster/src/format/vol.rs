@@ -219,6 +219,39 @@ pub fn open(path: &Path, mode: LoadMode) -> Result<VolVolume> {
     })
 }
 
+/// True when `head` is a valid header whose implied length is `file_len`.
+pub fn header_matches(head: &[u8], file_len: u64) -> bool {
+    VolHeader::parse(head).is_ok_and(|h| h.file_len() == Ok(file_len))
+}
+
+/// Opens a `.vol` file (as [`open`]) with a description of what it stores.
+pub fn open_with_info(path: &Path, mode: LoadMode) -> Result<super::Opened> {
+    let volume = open(path, mode)?;
+    let header = read_header(path)?;
+    let layout = super::SampleLayout {
+        dims: header.dims,
+        spacing: header.spacing,
+        sample: crate::sample::SampleType::U8,
+        endian: super::Endian::Little,
+        order: crate::volume::AxisOrder::ZFast,
+    };
+    let encoding = match header.layout {
+        VolLayout::Linear => "raw, z fastest".to_string(),
+        VolLayout::Bricked { side } => format!("bricked (B = {side})"),
+    };
+    let info = super::VolumeInfo::new(
+        super::FileFormat::Vol,
+        &layout,
+        &encoding,
+        header.file_len().unwrap_or(0),
+    );
+    let volume = match volume {
+        VolVolume::Linear(v) => v.into(),
+        VolVolume::Bricked(v) => v.into(),
+    };
+    Ok(super::Opened { volume, info })
+}
+
 /// Writes `volume` to `path` in `layout`. The file is written under a
 /// temporary name in the same directory and renamed when complete, so a
 /// reader never sees a partial file.

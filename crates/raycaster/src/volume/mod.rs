@@ -48,7 +48,7 @@ mod linear;
 pub use any::AnyVolume;
 pub use bricked::{BrickGrid, BrickedVolume};
 pub use grid::Grid;
-pub use linear::LinearVolume;
+pub use linear::{AxisOrder, LinearVolume};
 
 use glam::{UVec3, Vec3};
 
@@ -60,6 +60,8 @@ use crate::storage::StorageKind;
 pub enum Layout {
     /// One array, z fastest (`index = (x·Y + y)·Z + z`).
     Linear,
+    /// One array, x fastest (`index = (z·Y + y)·X + x`).
+    LinearXFast,
     /// Cubic bricks of `side`³ samples overlapping by one voxel plane.
     Bricked {
         /// Brick side in voxels.
@@ -71,6 +73,7 @@ impl std::fmt::Display for Layout {
     fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
         match self {
             Layout::Linear => f.write_str("linear"),
+            Layout::LinearXFast => f.write_str("linear (x fastest)"),
             Layout::Bricked { side } => write!(f, "bricked (B = {side})"),
         }
     }
@@ -453,6 +456,16 @@ pub(crate) fn fold_range<S: Sample>(values: impl Iterator<Item = S>) -> (S, S) {
     values.fold((S::HIGHEST, S::LOWEST), |(lo, hi), v| {
         (lo.min_of(v), hi.max_of(v))
     })
+}
+
+/// Smallest and largest of `samples` as `f32` ((+inf, −inf) when empty).
+pub(crate) fn fold_range_f32<S: Sample>(samples: &[S]) -> (f32, f32) {
+    let (lo, hi) = fold_range(samples.iter().copied());
+    if samples.is_empty() {
+        (f32::INFINITY, f32::NEG_INFINITY)
+    } else {
+        (lo.to_f32(), hi.to_f32())
+    }
 }
 
 /// Truncates `v` (any float, NaN included) to an integer coordinate in

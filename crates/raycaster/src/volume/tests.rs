@@ -153,3 +153,57 @@ fn unchecked_conversions_are_fed_only_representable_values() {
         let _ = lut.any_visible(v, v);
     }
 }
+
+/// The same field stored x fastest.
+fn x_fast<S: Sample>(grid: Grid, f: impl Fn(UVec3) -> S) -> LinearVolume<S> {
+    let d = grid.dims;
+    let mut v = Vec::new();
+    for z in 0..d.z {
+        for y in 0..d.y {
+            for x in 0..d.x {
+                v.push(f(UVec3::new(x, y, z)));
+            }
+        }
+    }
+    LinearVolume::with_order(grid, crate::storage::Storage::from_vec(v), AxisOrder::XFast).unwrap()
+}
+
+#[test]
+fn x_fast_order_samples_like_z_fast() {
+    let mut rng = fastrand::Rng::with_seed(4);
+    for dims in [
+        UVec3::new(23, 9, 31),
+        UVec3::new(5, 1, 6),
+        UVec3::new(1, 7, 1),
+        UVec3::new(17, 16, 3),
+    ] {
+        let grid = Grid::new(dims, Vec3::new(1.0, 0.5, 2.0));
+        let f = |v: UVec3| ((v.x * 131 + v.y * 71 + v.z * v.z * 17) % 253) as i16 - 100;
+        let z = LinearVolume::from_fn(grid, f);
+        let x = x_fast(grid, f);
+        assert_eq!(x.layout(), Layout::LinearXFast);
+        let max = grid.max_coord();
+        for _ in 0..300 {
+            let p = Vec3::new(rng.f32(), rng.f32(), rng.f32()) * max;
+            assert_eq!(x.sample(p), z.sample(p), "{dims} at {p}");
+            assert_eq!(x.gradient(p), z.gradient(p), "{dims} at {p}");
+            let v = (p.as_uvec3()).min(dims - UVec3::ONE);
+            assert_eq!(x.voxel(v), z.voxel(v));
+            let hi = v + UVec3::new(rng.u32(0..6), rng.u32(0..6), rng.u32(0..6));
+            assert_eq!(
+                x.value_range(v, hi),
+                z.value_range(v, hi),
+                "{dims} {v}..{hi}"
+            );
+        }
+        for cell in [2, 4, 8] {
+            let n = |d: u32| if d <= 1 { 1 } else { (d - 1).div_ceil(cell) };
+            let count = UVec3::new(n(dims.x), n(dims.y), n(dims.z));
+            assert_eq!(
+                x.cell_value_ranges(cell, count),
+                z.cell_value_ranges(cell, count),
+                "{dims} cell {cell}"
+            );
+        }
+    }
+}

@@ -227,11 +227,13 @@ impl ViewerApp {
 
     /// Switches to a named TF preset for the volume's sample type.
     pub fn set_tf_preset(&mut self, name: &str) {
-        let sample_type = self
+        let (sample_type, range) = self
             .volume
             .as_ref()
-            .map_or(SampleType::U8, |v| v.info.sample_type);
-        if let Some(tf) = TransferFunction::preset(name, sample_type) {
+            .map_or((SampleType::U8, (0.0, 255.0)), |v| {
+                (v.info.sample_type, v.info.value_range)
+            });
+        if let Some(tf) = TransferFunction::preset_for_data(name, sample_type, range) {
             self.settings.tf = tf;
             self.settings.tf_preset = Some(name.to_string());
         }
@@ -365,15 +367,17 @@ impl ViewerApp {
         if let Some(tf) = s
             .tf_preset
             .as_deref()
-            .and_then(|n| TransferFunction::preset(n, sample_type))
+            .and_then(|n| TransferFunction::preset_for_data(n, sample_type, info.value_range))
         {
             s.tf = tf;
         }
-        if !tf_shows_anything(&s.tf, info.value_range)
-            && let Some(ramp) = TransferFunction::preset("ramp", sample_type)
-        {
-            s.tf = ramp;
-            s.tf_preset = Some("ramp".into());
+        if !tf_shows_anything(&s.tf, info.value_range) {
+            let name = default_preset(&info);
+            if let Some(tf) = TransferFunction::preset_for_data(name, sample_type, info.value_range)
+            {
+                s.tf = tf;
+                s.tf_preset = Some(name.into());
+            }
         }
         let (lo, hi) = info.value_range;
         if !(lo..=hi).contains(&s.iso_value) {
@@ -427,6 +431,19 @@ pub(super) fn short_name(path: &Path) -> String {
         || path.display().to_string(),
         |n| n.to_string_lossy().into_owned(),
     )
+}
+
+/// The preset for a volume whose current TF shows nothing: by the modality
+/// the file declares, else `ramp` for 8-bit data (SPEC's default) and the
+/// data-fitted `mr-default` for wider types, where a ramp over the whole
+/// type range would be nearly transparent.
+fn default_preset(info: &VolumeInfo) -> &'static str {
+    match info.file.as_ref().and_then(|f| f.modality.as_deref()) {
+        Some("CT") => "ct-bone",
+        Some("MR") => "mr-default",
+        _ if matches!(info.sample_type, SampleType::U8 | SampleType::I8) => "ramp",
+        _ => "mr-default",
+    }
 }
 
 /// True when some value in `range` has a non-zero opacity under `tf`.

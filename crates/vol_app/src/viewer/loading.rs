@@ -14,7 +14,7 @@ use raycaster::prelude::*;
 use raycaster::storage::StorageKind;
 
 /// File extensions the library reads (for the file dialog's filter).
-pub const VOLUME_EXTENSIONS: &[&str] = &["vol"];
+pub const VOLUME_EXTENSIONS: &[&str] = &["vol", "nrrd", "nhdr", "nii", "gz", "dcm"];
 
 /// Where a volume comes from.
 #[derive(Debug, Clone, PartialEq, Eq)]
@@ -58,6 +58,9 @@ pub struct VolumeInfo {
     pub storage: StorageKind,
     /// Time from the start of loading to a ready scene.
     pub load_time: Duration,
+    /// What the file stores (format, stored type, rescale, orientation,
+    /// notes), when there is a file.
+    pub file: Option<raycaster::format::VolumeInfo>,
 }
 
 /// Voxel counts per value bin over the volume's value range.
@@ -252,11 +255,19 @@ fn load(source: &Source, progress: &Progress, wake: &dyn Fn()) -> Result<Loaded,
     let start = Instant::now();
     progress.set(Phase::Opening, None);
     wake();
-    let (volume, name, path, file_size) = match source {
+    let (volume, name, path, file) = match source {
         Source::File(path, mode) => {
-            let volume = raycaster::format::open(path, *mode).map_err(|e| e.to_string())?;
-            let size = std::fs::metadata(path).ok().map(|m| m.len());
-            (volume, file_name(path), Some(path.clone()), size)
+            let options = raycaster::format::OpenOptions {
+                mode: *mode,
+                raw: None,
+            };
+            let opened = raycaster::format::open_file(path, &options).map_err(|e| e.to_string())?;
+            (
+                opened.volume,
+                file_name(path),
+                Some(path.clone()),
+                Some(opened.info),
+            )
         }
         Source::Demo => (
             AnyVolume::from(crate::demo::demo_volume()),
@@ -265,6 +276,7 @@ fn load(source: &Source, progress: &Progress, wake: &dyn Fn()) -> Result<Loaded,
             None,
         ),
     };
+    let file_size = file.as_ref().map(|f| f.file_bytes);
     progress.set(Phase::Accelerating, None);
     wake();
     let (sample_type, layout, storage) =
@@ -294,6 +306,7 @@ fn load(source: &Source, progress: &Progress, wake: &dyn Fn()) -> Result<Loaded,
             layout,
             storage,
             load_time: start.elapsed(),
+            file,
         },
         scene: Arc::new(scene),
         histogram,

@@ -229,7 +229,7 @@ fn section(ui: &mut Ui, title: &str, body: impl FnOnce(&mut Ui)) {
 
 /// The volume's facts as a two-column grid.
 fn info_grid(ui: &mut Ui, info: &VolumeInfo) {
-    let rows = [
+    let mut rows = vec![
         // A long file name is shortened rather than widening the panel.
         ("Name", ellipsize(&info.name, 32)),
         (
@@ -269,6 +269,26 @@ fn info_grid(ui: &mut Ui, info: &VolumeInfo) {
             format!("{:.0} ms", info.load_time.as_secs_f64() * 1e3),
         ),
     ];
+    if let Some(file) = &info.file {
+        rows.insert(1, ("Format", file.format.name().to_string()));
+        let order = file
+            .byte_order
+            .map(|e| format!(", {}-endian", e.name()))
+            .unwrap_or_default();
+        rows.push((
+            "Stored as",
+            format!("{}{order}, {}", file.stored_type, file.encoding),
+        ));
+        if let Some(r) = file.rescale {
+            rows.push(("Rescale", format!("value = {r}")));
+        }
+        if let Some(o) = &file.orientation {
+            rows.push(("Orientation", ellipsize(o, 40)));
+        }
+        for n in &file.notes {
+            rows.push(("Note", ellipsize(n, 40)));
+        }
+    }
     egui::Grid::new("volume-info")
         .num_columns(2)
         .striped(true)

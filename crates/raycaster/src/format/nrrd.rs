@@ -1,0 +1,450 @@
+//! NRRD (teem's "nearly raw raster data"): a text header followed by the
+//! samples, in the same file (`.nrrd`) or in a detached one (`.nhdr` with a
+//! `data file:` field).
+//!
+//! Supported: `dimension` 3 (or 4 with a size-1 first axis, or with the
+//! extra axis slowest: the first volume is opened); types `uchar`, `signed
+//! char`, `short`, `ushort`, `float` in all their spellings; `endian`;
+//! encodings `raw` and `gzip`; `byte skip`, `line skip`; spacing from
+//! `space directions` (the length of each vector) or `spacings`. The first
+//! axis is the fastest (SPEC §7). Orientation and `space origin` are
+//! reported, not applied. Raw data is memory-mapped; gzip is decoded once.
+//! Not supported (named in the error): ascii/hex/bzip2 encodings, `int`,
+//! `double` and 64-bit types, multi-file `data file: LIST`.
+
+use std::collections::HashMap;
+use std::path::{Path, PathBuf};
+
+use glam::{UVec3, Vec3};
+
+use super::samples::{self, Endian, SampleLayout};
+use super::{FileFormat, Opened, VolumeInfo};
+use crate::error::{Error, FormatError, Result};
+use crate::sample::SampleType;
+use crate::storage::LoadMode;
+use crate::volume::AxisOrder;
+
+/// The header is text; a file whose first this-many bytes hold no blank line
+/// is not one we can read.
+const MAX_HEADER: usize = 1 << 20;
+
+/// How the samples are encoded.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Encoding {
+    /// As they are.
+    Raw,
+    /// A gzip stream.
+    Gzip,
+}
+
+/// The fields of an NRRD header that matter here, validated.
+#[derive(Debug, Clone, PartialEq)]
+pub struct NrrdHeader {
+    /// The sample layout (dimensions, spacing, type, byte order).
+    pub layout: SampleLayout,
+    /// Raw or gzip.
+    pub encoding: Encoding,
+    /// The file holding the samples (the header's own file when attached).
+    pub data_file: PathBuf,
+    /// Byte offset of the data in `data_file` (attached: just past the
+    /// header; plus `byte skip` / `line skip`). `None` for `byte skip: -1`
+    /// (the data is the file's last bytes).
+    pub data_offset: Option<u64>,
+    /// Volumes along a fourth (slowest) axis; the first is opened.
+    pub extra_volumes: u64,
+    /// `space directions` and `space origin` as written, if any.
+    pub orientation: Option<String>,
+}
+
+fn invalid(path: &Path, msg: impl Into<String>) -> Error {
+    Error::format(path, FormatError::Invalid(msg.into()))
+}
+
+fn unsupported(path: &Path, msg: impl Into<String>) -> Error {
+    Error::format(path, FormatError::Unsupported(msg.into()))
+}
+
+/// NRRD type names (teem's `nrrdTypeIsValid` spellings) to sample types.
+fn sample_type(name: &str) -> std::result::Result<SampleType, String> {
+    Ok(match name {
+        "uchar" | "unsigned char" | "uint8" | "uint8_t" => SampleType::U8,
+        "signed char" | "int8" | "int8_t" => SampleType::I8,
+        "short" | "short int" | "signed short" | "signed short int" | "int16" | "int16_t" => {
+            SampleType::I16
+        }
+        "ushort" | "unsigned short" | "unsigned short int" | "uint16" | "uint16_t" => {
+            SampleType::U16
+        }
+        "float" => SampleType::F32,
+        other => {
+            return Err(format!(
+                "sample type \"{other}\" (supported: uchar, signed char, short, ushort, float)"
+            ));
+        }
+    })
+}
+
+/// Parses `(x,y,z)` vectors separated by spaces; `none` entries give `None`.
+fn parse_vectors(text: &str) -> Option<Vec<Option<[f64; 3]>>> {
+    let mut out = Vec::new();
+    let mut rest = text.trim();
+    while !rest.is_empty() {
+        if let Some(r) = rest.strip_prefix("none") {
+            out.push(None);
+            rest = r.trim_start();
+            continue;
+        }
+        let r = rest.strip_prefix('(')?;
+        let end = r.find(')')?;
+        let v = samples::parse_triple::<f64>(&r[..end])?;
+        out.push(Some(v));
+        rest = r[end + 1..].trim_start();
+    }
+    Some(out)
+}
+
+/// Splits the file's first bytes into header lines and the data offset (the
+/// byte after the blank line that ends the header, or the end of `bytes`
+/// for a detached header without one).
+fn split_header(bytes: &[u8]) -> Option<(Vec<String>, u64)> {
+    let mut lines = Vec::new();
+    let mut pos = 0;
+    while pos < bytes.len() {
+        let end = bytes[pos..].iter().position(|&b| b == b'\n');
+        let (line, next) = match end {
+            Some(e) => (&bytes[pos..pos + e], pos + e + 1),
+            None => (&bytes[pos..], bytes.len()),
+        };
+        let line = String::from_utf8_lossy(line)
+            .trim_end_matches('\r')
+            .to_string();
+        if line.is_empty() {
+            return Some((lines, next as u64));
+        }
+        lines.push(line);
+        pos = next;
+    }
+    // No blank line: the whole text is a header (valid for .nhdr).
+    (!lines.is_empty()).then_some((lines, bytes.len() as u64))
+}
+
+impl NrrdHeader {
+    /// Reads and validates the header of `path`.
+    pub fn read(path: &Path) -> Result<Self> {
+        let head = super::read_head(path, MAX_HEADER)?;
+        if !head.starts_with(b"NRRD000") {
+            return Err(invalid(path, "not an NRRD file (no NRRD000x magic line)"));
+        }
+        let (lines, header_end) = split_header(&head).ok_or_else(|| {
+            invalid(
+                path,
+                "header does not end (no blank line in the first 1 MB)",
+            )
+        })?;
+        let mut fields = HashMap::new();
+        for line in lines.iter().skip(1) {
+            if line.starts_with('#') || line.contains(":=") {
+                continue; // comments and key/value pairs
+            }
+            let Some((key, value)) = line.split_once(": ") else {
+                return Err(invalid(path, format!("malformed header line \"{line}\"")));
+            };
+            fields.insert(key.trim().to_ascii_lowercase(), value.trim().to_string());
+        }
+        let get = |k: &str| fields.get(k).map(String::as_str);
+        let need = |k: &str| get(k).ok_or_else(|| invalid(path, format!("missing field \"{k}\"")));
+
+        let ty = sample_type(need("type")?).map_err(|m| unsupported(path, m))?;
+        let dimension: usize = need("dimension")?
+            .parse()
+            .map_err(|_| invalid(path, "dimension is not a number"))?;
+        let sizes: Vec<u64> = need("sizes")?
+            .split_whitespace()
+            .map(|s| s.parse().ok().filter(|&n| n > 0))
+            .collect::<Option<_>>()
+            .ok_or_else(|| invalid(path, "sizes must be positive integers"))?;
+        if sizes.len() != dimension {
+            return Err(invalid(
+                path,
+                format!(
+                    "dimension is {dimension} but sizes has {} entries",
+                    sizes.len()
+                ),
+            ));
+        }
+        // Which axes are the volume's x, y, z.
+        let (axes, extra_volumes) = match dimension {
+            3 => ([0, 1, 2], 1),
+            4 if sizes[0] == 1 => ([1, 2, 3], 1),
+            4 => ([0, 1, 2], sizes[3]),
+            d => {
+                return Err(unsupported(
+                    path,
+                    format!(
+                        "{d}-dimensional data (3-D volumes, or 4-D opened as their first volume)"
+                    ),
+                ));
+            }
+        };
+        let dims = axes.map(|a| sizes[a]);
+        if dims.iter().any(|&d| d >= 1 << 31) {
+            return Err(invalid(path, "a size exceeds 2^31"));
+        }
+        let dims = UVec3::new(dims[0] as u32, dims[1] as u32, dims[2] as u32);
+
+        let endian = match get("endian") {
+            Some("little") => Endian::Little,
+            Some("big") => Endian::Big,
+            None if ty.size() == 1 => Endian::Little,
+            None => {
+                return Err(invalid(
+                    path,
+                    "missing field \"endian\" for a multi-byte type",
+                ));
+            }
+            Some(other) => return Err(invalid(path, format!("endian \"{other}\""))),
+        };
+        let encoding = match need("encoding")? {
+            "raw" => Encoding::Raw,
+            "gzip" | "gz" => Encoding::Gzip,
+            other => {
+                return Err(unsupported(
+                    path,
+                    format!("encoding \"{other}\" (supported: raw, gzip)"),
+                ));
+            }
+        };
+
+        let mut orientation = None;
+        let spacing_all: Vec<f64> = if let Some(sd) = get("space directions") {
+            let vectors = parse_vectors(sd)
+                .filter(|v| v.len() == dimension)
+                .ok_or_else(|| invalid(path, format!("malformed space directions \"{sd}\"")))?;
+            let mut text = format!("space directions {sd}");
+            if let Some(space) = get("space") {
+                text = format!("space {space}; {text}");
+            }
+            if let Some(origin) = get("space origin") {
+                text.push_str(&format!("; space origin {origin}"));
+            }
+            orientation = Some(text);
+            vectors
+                .iter()
+                .map(|v| v.map_or(1.0, |[a, b, c]| (a * a + b * b + c * c).sqrt()))
+                .collect()
+        } else if let Some(sp) = get("spacings") {
+            let v: Vec<f64> = sp
+                .split_whitespace()
+                .map(|s| {
+                    // teem writes "nan" for an axis without spacing.
+                    if s.eq_ignore_ascii_case("nan") {
+                        Some(1.0)
+                    } else {
+                        s.parse().ok().filter(|v: &f64| v.is_finite())
+                    }
+                })
+                .collect::<Option<_>>()
+                .filter(|v: &Vec<f64>| v.len() == dimension)
+                .ok_or_else(|| invalid(path, format!("malformed spacings \"{sp}\"")))?;
+            v
+        } else {
+            vec![1.0; dimension]
+        };
+        let spacing = axes.map(|a| spacing_all[a] as f32);
+        let spacing = Vec3::from_array(spacing);
+
+        let dir = path.parent().unwrap_or(Path::new("."));
+        let data_file = match get("data file").or(get("datafile")) {
+            None => path.to_path_buf(),
+            Some(f) if f.starts_with("LIST") || f.split_whitespace().count() > 1 => {
+                return Err(unsupported(path, "data split over several files"));
+            }
+            Some(f) => dir.join(f),
+        };
+        let attached = data_file == path;
+        let line_skip: u64 = get("line skip")
+            .or(get("lineskip"))
+            .map_or(Ok(0), |s| s.parse())
+            .map_err(|_| invalid(path, "line skip is not a number"))?;
+        let byte_skip: i64 = get("byte skip")
+            .or(get("byteskip"))
+            .map_or(Ok(0), |s| s.parse())
+            .map_err(|_| invalid(path, "byte skip is not a number"))?;
+        let base = if attached { header_end } else { 0 };
+        let after_lines = if line_skip > 0 {
+            skip_lines(&data_file, base, line_skip)?
+        } else {
+            base
+        };
+        let data_offset = match byte_skip {
+            -1 if encoding == Encoding::Raw => None,
+            -1 => {
+                return Err(invalid(
+                    path,
+                    "byte skip -1 is only valid with raw encoding",
+                ));
+            }
+            n if n < 0 => return Err(invalid(path, format!("byte skip {n}"))),
+            n => Some(after_lines + n as u64),
+        };
+        Ok(NrrdHeader {
+            layout: SampleLayout {
+                dims,
+                spacing,
+                sample: ty,
+                endian,
+                order: AxisOrder::XFast,
+            },
+            encoding,
+            data_file,
+            data_offset,
+            extra_volumes,
+            orientation,
+        })
+    }
+}
+
+/// The byte offset after `n` lines starting at `from` in `path`.
+fn skip_lines(path: &Path, from: u64, n: u64) -> Result<u64> {
+    use std::io::{BufRead, Seek, SeekFrom};
+    let mut f = std::io::BufReader::new(std::fs::File::open(path).map_err(|e| Error::io(path, e))?);
+    f.seek(SeekFrom::Start(from))
+        .map_err(|e| Error::io(path, e))?;
+    let mut pos = from;
+    let mut line = Vec::new();
+    for _ in 0..n {
+        line.clear();
+        let read = f
+            .read_until(b'\n', &mut line)
+            .map_err(|e| Error::io(path, e))?;
+        if read == 0 {
+            return Err(invalid(path, "line skip passes the end of the file"));
+        }
+        pos += read as u64;
+    }
+    Ok(pos)
+}
+
+/// Opens an NRRD file (`.nrrd` or `.nhdr`).
+pub fn open(path: &Path, mode: LoadMode) -> Result<Opened> {
+    let h = NrrdHeader::read(path)?;
+    let layout = h.layout;
+    layout.validate(path)?;
+    let bytes = layout.byte_len(path)?;
+    let data = &h.data_file;
+    let data_len = super::file_len(data)?;
+    let volume = match h.encoding {
+        Encoding::Raw => {
+            let offset = match h.data_offset {
+                Some(o) => o,
+                None => data_len.checked_sub(bytes).ok_or_else(|| {
+                    Error::format(
+                        data,
+                        FormatError::WrongLength {
+                            expected: bytes,
+                            found: data_len,
+                            detail: "samples at the end of the file (byte skip -1)".into(),
+                        },
+                    )
+                })?,
+            };
+            samples::from_file(data, offset, &layout, None, mode, false)?
+        }
+        Encoding::Gzip => {
+            use std::io::{Read, Seek, SeekFrom};
+            let mut f = std::fs::File::open(data).map_err(|e| Error::io(data, e))?;
+            f.seek(SeekFrom::Start(h.data_offset.unwrap_or(0)))
+                .map_err(|e| Error::io(data, e))?;
+            let decoded = super::gunzip(data, std::io::BufReader::new(f).by_ref(), bytes)?;
+            samples::from_bytes(data, &decoded, &layout, None)?
+        }
+    };
+    let mut file_bytes = super::file_len(path)?;
+    if data != path {
+        file_bytes += data_len;
+    }
+    let encoding = match h.encoding {
+        Encoding::Raw => "raw",
+        Encoding::Gzip => "gzip",
+    };
+    let mut info = VolumeInfo::new(FileFormat::Nrrd, &layout, encoding, file_bytes);
+    info.orientation = h.orientation;
+    if data != path {
+        info.notes.push(format!("data in {}", data.display()));
+    }
+    if h.extra_volumes > 1 {
+        info.notes.push(format!(
+            "4-D file with {} volumes: opened the first",
+            h.extra_volumes
+        ));
+    }
+    Ok(Opened { volume, info })
+}
+
+/// Writes `samples` (x fastest, little-endian) as an NRRD file with the given
+/// encoding: the project's own writer, used by converters and round-trip
+/// tests.
+pub fn write(
+    path: &Path,
+    dims: UVec3,
+    spacing: Vec3,
+    sample: SampleType,
+    le_bytes: &[u8],
+    encoding: Encoding,
+) -> Result<()> {
+    use std::io::Write;
+    let type_name = match sample {
+        SampleType::U8 => "uchar",
+        SampleType::I8 => "signed char",
+        SampleType::U16 => "ushort",
+        SampleType::I16 => "short",
+        SampleType::F32 => "float",
+    };
+    let header = format!(
+        "NRRD0004\n# written by raycaster\ntype: {type_name}\ndimension: 3\nspace: left-posterior-superior\nsizes: {} {} {}\nspace directions: ({},0,0) (0,{},0) (0,0,{})\nendian: little\nencoding: {}\nspace origin: (0,0,0)\n\n",
+        dims.x,
+        dims.y,
+        dims.z,
+        spacing.x,
+        spacing.y,
+        spacing.z,
+        match encoding {
+            Encoding::Raw => "raw",
+            Encoding::Gzip => "gzip",
+        }
+    );
+    super::vol::write_atomically(path, |w| {
+        w.write_all(header.as_bytes())?;
+        match encoding {
+            Encoding::Raw => w.write_all(le_bytes),
+            Encoding::Gzip => {
+                let mut gz = flate2::write::GzEncoder::new(w, flate2::Compression::fast());
+                gz.write_all(le_bytes)?;
+                gz.finish().map(|_| ())
+            }
+        }
+    })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn space_directions_parse_with_none_and_spaces() {
+        let v = parse_vectors("none (1,0,0) (0, 2.5, 0)  (0,0,-3)").unwrap();
+        assert_eq!(v[0], None);
+        assert_eq!(v[2], Some([0.0, 2.5, 0.0]));
+        assert_eq!(v[3], Some([0.0, 0.0, -3.0]));
+        assert!(parse_vectors("(1,0) (0,1,0)").is_none());
+        assert!(parse_vectors("(1,0,0").is_none());
+    }
+
+    #[test]
+    fn type_spellings() {
+        assert_eq!(sample_type("unsigned char"), Ok(SampleType::U8));
+        assert_eq!(sample_type("int16_t"), Ok(SampleType::I16));
+        assert_eq!(sample_type("ushort"), Ok(SampleType::U16));
+        assert!(sample_type("double").unwrap_err().contains("double"));
+    }
+}

@@ -1,0 +1,105 @@
+//! `vol_app info FILE`: what a volume file holds, as text or JSON.
+
+use raycaster::prelude::*;
+use raycaster::storage::StorageKind;
+
+use crate::anyhow_like::Error;
+use crate::cli::InfoArgs;
+
+/// Runs the `info` subcommand.
+pub fn run(args: &InfoArgs) -> Result<(), Error> {
+    let opened = raycaster::format::open_file(&args.file, &args.raw.open_options(LoadMode::Map))?;
+    let info = &opened.info;
+    let volume = opened.volume;
+    let in_memory = volume.sample_type();
+    let storage = volume.storage_kind();
+    let layout = volume.layout();
+    let scene = Scene::new(volume);
+    let (lo, hi) = scene.value_range();
+    let grid = *scene.grid();
+    let extent = grid.extent();
+    let memory_bytes = grid.voxel_count() * in_memory.size() as u64;
+    let storage_name = match storage {
+        StorageKind::Mapped => "memory-mapped",
+        StorageKind::Ram => "in RAM",
+    };
+    if args.json {
+        let v = serde_json::json!({
+            "file": args.file.display().to_string(),
+            "format": info.format.name(),
+            "dims": info.dims.to_array(),
+            "spacing": info.spacing.to_array(),
+            "extent": extent.to_array(),
+            "stored_type": info.stored_type.name(),
+            "byte_order": info.byte_order.map(|e| e.name()),
+            "encoding": info.encoding,
+            "rescale": info.rescale.map(|r| serde_json::json!({"slope": r.slope, "intercept": r.intercept})),
+            "sample_type": in_memory.name(),
+            "value_range": [lo, hi],
+            "orientation": info.orientation,
+            "notes": info.notes,
+            "file_bytes": info.file_bytes,
+            "memory_bytes": memory_bytes,
+            "storage": storage_name,
+            "layout": layout.to_string(),
+        });
+        println!("{v}");
+        return Ok(());
+    }
+    let d = info.dims;
+    let s = info.spacing;
+    println!("file         {}", args.file.display());
+    println!("format       {}", info.format);
+    println!("dimensions   {} x {} x {}", d.x, d.y, d.z);
+    println!("spacing      {} x {} x {}", s.x, s.y, s.z);
+    println!(
+        "extent       {} x {} x {} (world units)",
+        extent.x, extent.y, extent.z
+    );
+    let order = info
+        .byte_order
+        .map(|e| format!(", {}-endian", e.name()))
+        .unwrap_or_default();
+    println!(
+        "stored as    {}{order}, {}",
+        info.stored_type, info.encoding
+    );
+    if let Some(r) = info.rescale {
+        println!("rescale      value = {r} (held as {in_memory})");
+    }
+    println!("values       {} .. {}", fmt_value(lo), fmt_value(hi));
+    println!(
+        "orientation  {}",
+        info.orientation
+            .as_deref()
+            .unwrap_or("none stored (not applied either way)")
+    );
+    println!("on disk      {}", bytes(info.file_bytes));
+    println!(
+        "in memory    {} ({storage_name}, {layout})",
+        bytes(memory_bytes)
+    );
+    for note in &info.notes {
+        println!("note         {note}");
+    }
+    Ok(())
+}
+
+fn fmt_value(v: f32) -> String {
+    if v.fract() == 0.0 && v.abs() < 1e9 {
+        format!("{v:.0}")
+    } else {
+        format!("{v}")
+    }
+}
+
+/// `1234567` → `1.2 MB (1234567 bytes)`.
+fn bytes(n: u64) -> String {
+    let (v, unit) = match n {
+        n if n >= 1 << 30 => (n as f64 / (1u64 << 30) as f64, "GiB"),
+        n if n >= 1 << 20 => (n as f64 / (1u64 << 20) as f64, "MiB"),
+        n if n >= 1 << 10 => (n as f64 / (1u64 << 10) as f64, "KiB"),
+        _ => return format!("{n} bytes"),
+    };
+    format!("{v:.1} {unit} ({n} bytes)")
+}
