@@ -112,7 +112,11 @@ impl RawArgs {
             }),
             _ => None,
         };
-        raycaster::format::OpenOptions { mode, raw }
+        raycaster::format::OpenOptions {
+            mode,
+            raw,
+            progress: crate::progress::decode_bar(),
+        }
     }
 }
 

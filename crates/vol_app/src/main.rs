@@ -6,6 +6,7 @@
 
 mod cli;
 mod info_cmd;
+mod progress;
 mod render_cmd;
 mod stats;
 

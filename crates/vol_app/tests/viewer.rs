@@ -244,6 +244,63 @@ fn opens_a_dropped_file_and_shows_its_information() {
 }
 
 #[test]
+fn opens_a_16_bit_nifti_with_a_rescale_and_shows_what_the_file_stores() {
+    let dir = TempDir::new("nifti");
+    let (mut h, _) = open_file(&dir);
+    // A ball stored as u16 0/500 with slope 2, intercept -100: data units
+    // -100 and 900, held as i16.
+    let dims = UVec3::new(28, 24, 20);
+    let c = (dims.as_vec3() - 1.0) * 0.5;
+    let mut bytes = Vec::new();
+    for z in 0..dims.z {
+        for y in 0..dims.y {
+            for x in 0..dims.x {
+                let inside = (UVec3::new(x, y, z).as_vec3() - c).length() < 8.0;
+                bytes.extend_from_slice(&(if inside { 500u16 } else { 0 }).to_le_bytes());
+            }
+        }
+    }
+    let path = dir.path("ball.nii.gz");
+    raycaster::format::nifti::write(
+        &path,
+        dims,
+        Vec3::new(1.0, 1.0, 2.0),
+        SampleType::U16,
+        &bytes,
+        Some(raycaster::format::Rescale {
+            slope: 2.0,
+            intercept: -100.0,
+        }),
+    )
+    .unwrap();
+    h.input_mut()
+        .dropped_files
+        .push(Arc::new(Dropped(path.clone())));
+    step_until(&mut h, "the NIfTI file", |a| {
+        a.volume()
+            .is_some_and(|v| v.info.path.as_deref() == Some(path.as_path()))
+    });
+    settle(&mut h);
+    let a = app(&h);
+    assert!(a.error().is_none(), "{:?}", a.error());
+    let info = &a.volume().unwrap().info;
+    assert_eq!(info.sample_type, SampleType::I16);
+    assert_eq!(info.value_range, (-100.0, 900.0));
+    assert!(frame_is_current(a));
+    for label in [
+        "NIfTI-1",
+        "28 × 24 × 20",
+        "i16",
+        "-100 … 900",
+        "linear (x fastest)",
+        "u16, little-endian, gzip",
+        "value = stored × 2 + -100",
+    ] {
+        h.get_by_label(label);
+    }
+}
+
+#[test]
 fn switching_tf_preset_and_mode_renders_new_frames() {
     let dir = TempDir::new("tf_mode");
     let (mut h, _) = open_file(&dir);

@@ -73,6 +73,11 @@ const ORIENTATION_TOLERANCE: f64 = 1e-3;
 /// `path` belongs to (with the other files of its directory), as described in
 /// the module documentation.
 pub fn open(path: &Path) -> Result<Opened> {
+    open_with(path, None)
+}
+
+/// As [`open`], reporting the fraction of slices read.
+pub fn open_with(path: &Path, progress: Option<&super::Progress>) -> Result<Opened> {
     let meta = std::fs::metadata(path).map_err(|e| Error::io(path, e))?;
     let (dir, chosen_file) = if meta.is_dir() {
         (path.to_path_buf(), None)
@@ -170,7 +175,7 @@ pub fn open(path: &Path) -> Result<Opened> {
         ));
     }
     let series: Vec<&Header> = groups[pick].iter().map(|&i| &headers[i]).collect();
-    build(series, notes)
+    build(series, notes, progress)
 }
 
 /// What pass 1 learns from a file's header (everything before Pixel Data).
@@ -671,7 +676,11 @@ fn fmt_vec(v: &[f64]) -> String {
 }
 
 /// Orders, checks and reads one series.
-fn build(mut series: Vec<&Header>, mut notes: Vec<String>) -> Result<Opened> {
+fn build(
+    mut series: Vec<&Header>,
+    mut notes: Vec<String>,
+    progress: Option<&super::Progress>,
+) -> Result<Opened> {
     // Instance Number, then file name, decides between equal positions.
     series.sort_by(|a, b| {
         (a.instance.is_none(), a.instance, &a.path).cmp(&(
@@ -800,10 +809,16 @@ fn build(mut series: Vec<&Header>, mut notes: Vec<String>) -> Result<Opened> {
     layout.validate(&first.path)?;
     let grid = Grid::new(dims, spacing);
     let volume = match format.sample_type() {
-        SampleType::U8 => read_volume::<u8>(grid, &format, &slices, uniform, series_rescale),
-        SampleType::I8 => read_volume::<i8>(grid, &format, &slices, uniform, series_rescale),
-        SampleType::U16 => read_volume::<u16>(grid, &format, &slices, uniform, series_rescale),
-        _ => read_volume::<i16>(grid, &format, &slices, uniform, series_rescale),
+        SampleType::U8 => {
+            read_volume::<u8>(grid, &format, &slices, uniform, series_rescale, progress)
+        }
+        SampleType::I8 => {
+            read_volume::<i8>(grid, &format, &slices, uniform, series_rescale, progress)
+        }
+        SampleType::U16 => {
+            read_volume::<u16>(grid, &format, &slices, uniform, series_rescale, progress)
+        }
+        _ => read_volume::<i16>(grid, &format, &slices, uniform, series_rescale, progress),
     }?;
 
     let mut info = VolumeInfo::new(
@@ -881,6 +896,7 @@ fn read_volume<S: Stored>(
     slices: &[Slice],
     uniform: bool,
     rescale: Option<Rescale>,
+    progress: Option<&super::Progress>,
 ) -> Result<AnyVolume>
 where
     AnyVolume: From<LinearVolume<S>>,
@@ -890,9 +906,17 @@ where
         .checked_mul(slices.len())
         .ok_or_else(|| invalid(slices[0].header, "series too large for this machine".into()))?;
     let mut data = vec![S::from_word(0); total];
+    let read = std::sync::atomic::AtomicUsize::new(0);
     data.par_chunks_mut(per_slice)
         .zip(slices.par_iter())
-        .try_for_each(|(out, slice)| read_slice(slice, format, out))?;
+        .try_for_each(|(out, slice)| {
+            read_slice(slice, format, out)?;
+            if let Some(p) = progress {
+                let done = read.fetch_add(1, std::sync::atomic::Ordering::Relaxed) + 1;
+                p.report(done as f32 / slices.len() as f32);
+            }
+            Ok::<(), Error>(())
+        })?;
     if uniform {
         return samples::from_samples(grid, data, AxisOrder::XFast, rescale);
     }

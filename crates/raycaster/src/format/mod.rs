@@ -90,6 +90,75 @@ pub struct OpenOptions {
     /// The description of a headerless file; when given, the file is read as
     /// raw whatever its extension.
     pub raw: Option<RawOptions>,
+    /// Told how far a decode that takes time has come (gzip streams, DICOM
+    /// slices); mapping a file needs no progress.
+    pub progress: Option<Progress>,
+}
+
+/// A callback that receives the fraction (0 to 1) of a long decode done,
+/// from the thread that opens the file (or, for DICOM series, from the
+/// reading threads).
+#[derive(Clone)]
+pub struct Progress(std::sync::Arc<dyn Fn(f32) + Send + Sync>);
+
+impl Progress {
+    /// Wraps `report`.
+    pub fn new(report: impl Fn(f32) + Send + Sync + 'static) -> Self {
+        Progress(std::sync::Arc::new(report))
+    }
+
+    /// Reports `fraction` done.
+    pub fn report(&self, fraction: f32) {
+        (self.0)(fraction.clamp(0.0, 1.0))
+    }
+}
+
+impl std::fmt::Debug for Progress {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.write_str("Progress(..)")
+    }
+}
+
+impl PartialEq for Progress {
+    fn eq(&self, other: &Self) -> bool {
+        std::sync::Arc::ptr_eq(&self.0, &other.0)
+    }
+}
+
+/// A reader that reports the fraction of `total` bytes read through it
+/// (in steps of about 1%).
+pub(crate) struct ProgressReader<R> {
+    inner: R,
+    read: u64,
+    total: u64,
+    next_report: u64,
+    progress: Option<Progress>,
+}
+
+impl<R: std::io::Read> ProgressReader<R> {
+    pub(crate) fn new(inner: R, total: u64, progress: Option<&Progress>) -> Self {
+        ProgressReader {
+            inner,
+            read: 0,
+            total: total.max(1),
+            next_report: 0,
+            progress: progress.cloned(),
+        }
+    }
+}
+
+impl<R: std::io::Read> std::io::Read for ProgressReader<R> {
+    fn read(&mut self, buf: &mut [u8]) -> std::io::Result<usize> {
+        let n = self.inner.read(buf)?;
+        self.read += n as u64;
+        if let Some(p) = &self.progress
+            && self.read >= self.next_report
+        {
+            p.report(self.read as f32 / self.total as f32);
+            self.next_report = self.read + self.total / 100;
+        }
+        Ok(n)
+    }
 }
 
 /// What a file stores, as its header says (before any conversion).
@@ -206,15 +275,25 @@ pub fn detect(path: &Path) -> Result<FileFormat> {
 /// Opens a volume file of any supported format, as described in the module
 /// documentation.
 pub fn open_file(path: &Path, options: &OpenOptions) -> Result<Opened> {
+    let opened = open_detected(path, options);
+    if let Some(p) = &options.progress {
+        // Done (or failed): the reader may have stopped short of its input's
+        // end (the first volume of a 4-D file), so say it here.
+        p.report(1.0);
+    }
+    opened
+}
+
+fn open_detected(path: &Path, options: &OpenOptions) -> Result<Opened> {
     if let Some(raw) = &options.raw {
         return raw::open(path, raw, options.mode);
     }
     match detect(path)? {
         FileFormat::Vol => vol::open_with_info(path, options.mode),
         FileFormat::DavisVol => davis::open(path, options.mode),
-        FileFormat::Nrrd => nrrd::open(path, options.mode),
-        FileFormat::Nifti => nifti::open(path, options.mode),
-        FileFormat::Dicom => dicom::open(path),
+        FileFormat::Nrrd => nrrd::open_with(path, options.mode, options.progress.as_ref()),
+        FileFormat::Nifti => nifti::open_with(path, options.mode, options.progress.as_ref()),
+        FileFormat::Dicom => dicom::open_with(path, options.progress.as_ref()),
         FileFormat::Raw => Err(Error::InvalidArgument(format!(
             "{}: raw files need --raw-dims and --raw-type",
             path.display()

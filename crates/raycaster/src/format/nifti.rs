@@ -180,13 +180,22 @@ fn is_gzip_name(path: &Path) -> bool {
 
 /// Opens a NIfTI-1 file.
 pub fn open(path: &Path, mode: LoadMode) -> Result<Opened> {
+    open_with(path, mode, None)
+}
+
+/// As [`open`], reporting the progress of a gzip decode.
+pub fn open_with(
+    path: &Path,
+    mode: LoadMode,
+    progress: Option<&super::Progress>,
+) -> Result<Opened> {
     let file_bytes = super::file_len(path)?;
     let gz = is_gzip_name(path) || super::read_head(path, 2)? == [0x1f, 0x8b];
     // The header: from the file, or from the start of the gzip stream.
     let file = std::fs::File::open(path).map_err(|e| Error::io(path, e))?;
     let mut stream: Box<dyn Read> = if gz {
         Box::new(flate2::read::MultiGzDecoder::new(std::io::BufReader::new(
-            file,
+            super::ProgressReader::new(file, file_bytes, progress),
         )))
     } else {
         Box::new(file)

@@ -327,6 +327,15 @@ fn skip_lines(path: &Path, from: u64, n: u64) -> Result<u64> {
 
 /// Opens an NRRD file (`.nrrd` or `.nhdr`).
 pub fn open(path: &Path, mode: LoadMode) -> Result<Opened> {
+    open_with(path, mode, None)
+}
+
+/// As [`open`], reporting the progress of a gzip decode.
+pub fn open_with(
+    path: &Path,
+    mode: LoadMode,
+    progress: Option<&super::Progress>,
+) -> Result<Opened> {
     let h = NrrdHeader::read(path)?;
     let layout = h.layout;
     layout.validate(path)?;
@@ -351,11 +360,13 @@ pub fn open(path: &Path, mode: LoadMode) -> Result<Opened> {
             samples::from_file(data, offset, &layout, None, mode, false)?
         }
         Encoding::Gzip => {
-            use std::io::{Read, Seek, SeekFrom};
+            use std::io::{Seek, SeekFrom};
             let mut f = std::fs::File::open(data).map_err(|e| Error::io(data, e))?;
             f.seek(SeekFrom::Start(h.data_offset.unwrap_or(0)))
                 .map_err(|e| Error::io(data, e))?;
-            let decoded = super::gunzip(data, std::io::BufReader::new(f).by_ref(), bytes)?;
+            let start = h.data_offset.unwrap_or(0);
+            let counted = super::ProgressReader::new(f, data_len.saturating_sub(start), progress);
+            let decoded = super::gunzip(data, std::io::BufReader::new(counted), bytes)?;
             samples::from_bytes(data, &decoded, &layout, None)?
         }
     };

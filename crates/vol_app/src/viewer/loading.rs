@@ -195,7 +195,8 @@ pub struct LoadJob {
 impl LoadJob {
     /// Starts loading `source`; `wake` is called from the loading thread
     /// whenever there is news (progress or the result).
-    pub fn start(source: Source, wake: impl Fn() + Send + 'static) -> Self {
+    pub fn start(source: Source, wake: impl Fn() + Send + Sync + 'static) -> Self {
+        let wake: Arc<dyn Fn() + Send + Sync> = Arc::new(wake);
         let (tx, rx) = crossbeam_channel::bounded(1);
         let progress = Arc::new(Progress::default());
         let job = LoadJob {
@@ -208,7 +209,7 @@ impl LoadJob {
             .name("vol_app-load".into())
             .spawn(move || {
                 let result = std::panic::catch_unwind(std::panic::AssertUnwindSafe(|| {
-                    load(&source, &progress, &wake)
+                    load(&source, &progress, wake.clone())
                 }))
                 .unwrap_or_else(|_| {
                     Err(format!("{}: internal error while loading", source.name()))
@@ -251,15 +252,25 @@ impl LoadJob {
     }
 }
 
-fn load(source: &Source, progress: &Progress, wake: &dyn Fn()) -> Result<Loaded, String> {
+fn load(
+    source: &Source,
+    progress: &Arc<Progress>,
+    wake: Arc<dyn Fn() + Send + Sync>,
+) -> Result<Loaded, String> {
     let start = Instant::now();
     progress.set(Phase::Opening, None);
     wake();
     let (volume, name, path, file) = match source {
         Source::File(path, mode) => {
+            // Decoding (gzip, DICOM slices) reports its fraction.
+            let (p, w) = (progress.clone(), wake.clone());
             let options = raycaster::format::OpenOptions {
                 mode: *mode,
                 raw: None,
+                progress: Some(raycaster::format::Progress::new(move |f| {
+                    p.set(Phase::Opening, Some(f));
+                    w();
+                })),
             };
             let opened = raycaster::format::open_file(path, &options).map_err(|e| e.to_string())?;
             (
