@@ -70,7 +70,7 @@ vtk = json.loads(open(sys.argv[2]).read().strip().splitlines()[-1])
 o, v = ours["frame_ms_median"], vtk["frame_ms_median"]
 c = vtk.get("compare", {})
 print(f"{sys.argv[3]}: ours {o:.1f} ms {ours['frame_ms']} | VTK {v:.1f} ms {vtk['frame_ms']} "
-      f"(wall {vtk['wall_ms_median']:.1f}) | VTK/ours {v/o:.2f}x | ours <= VTK/2: "
+      f"(cast only {vtk.get('cast_ms_median', 0):.1f}, wall {vtk['wall_ms_median']:.1f}) | VTK/ours {v/o:.2f}x | ours <= VTK/2: "
       f"{'yes' if o <= v/2 else 'NO'} | PSNR {c.get('psnr_db')} dB, MAD {c.get('mean_abs_diff')} "
       f"| load {sys.argv[4]}->{sys.argv[5]}")
 EOF

@@ -14,11 +14,11 @@ pub fn run(args: &InfoArgs) -> Result<(), Error> {
     let in_memory = volume.sample_type();
     let storage = volume.storage_kind();
     let layout = volume.layout();
+    let memory_bytes = volume.memory_bytes();
     let scene = Scene::new(volume);
     let (lo, hi) = scene.value_range();
     let grid = *scene.grid();
     let extent = grid.extent();
-    let memory_bytes = grid.voxel_count() * in_memory.size() as u64;
     let storage_name = match storage {
         StorageKind::Mapped => "memory-mapped",
         StorageKind::Ram => "in RAM",

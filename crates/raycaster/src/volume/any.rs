@@ -85,6 +85,12 @@ impl AnyVolume {
         crate::dispatch_volume!(self, v => v.storage_kind())
     }
 
+    /// Bytes the samples take in memory (bricks include their overlap and
+    /// padding), whether in RAM or mapped.
+    pub fn memory_bytes(&self) -> u64 {
+        crate::dispatch_volume!(self, v => std::mem::size_of_val(v.samples()) as u64)
+    }
+
     /// The sample type.
     pub fn sample_type(&self) -> SampleType {
         fn tag<V: Volume>(_: &V) -> SampleType {
