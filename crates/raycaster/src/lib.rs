@@ -1,6 +1,7 @@
 //! CPU volume ray casting.
 //!
-//! `raycaster` reads volumes (the `.vol` format, linear or bricked, in RAM or
+//! `raycaster` reads volumes (the `.vol` format, linear or bricked; NRRD,
+//! NIfTI-1, DICOM series, raw; 8/16-bit integer and float samples; in RAM or
 //! memory-mapped), and renders them by ray casting: trilinear sampling,
 //! transfer functions with opacity correction, Phong shading from gradients,
 //! DVR / MIP / x-ray / isosurface modes, early ray termination and
@@ -43,11 +44,15 @@
 //! assert_eq!(frame.pixel(0, 0), [0, 0, 0]);
 //! ```
 //!
-//! To open a file, use [`format::open`] and wrap the result in a [`Scene`](scene::Scene):
+//! To open a file of any supported format, use [`format::open`] (or
+//! [`format::open_file`] for a description of what the file stores) and
+//! wrap the volume in a [`Scene`](scene::Scene); transfer function values are
+//! in the data's units (Hounsfield units for CT):
 //!
 //! ```no_run
 //! use raycaster::prelude::*;
-//! let volume = raycaster::format::open("head.vol".as_ref(), LoadMode::Map)?;
+//! let volume = raycaster::format::open("head_ct.nii.gz".as_ref(), LoadMode::Map)?;
+//! let tf = TransferFunction::preset("ct-bone", volume.sample_type()).unwrap();
 //! let scene = Scene::new(volume);
 //! # Ok::<(), raycaster::Error>(())
 //! ```

@@ -295,7 +295,7 @@ impl ViewerApp {
             Some((_, Answer::Cancelled)) | None => return,
         };
         let result = match purpose {
-            Purpose::OpenVolume => {
+            Purpose::OpenVolume | Purpose::OpenFolder => {
                 self.open(&path);
                 Ok(())
             }
@@ -304,7 +304,7 @@ impl ViewerApp {
             Purpose::SavePng => self.save_frame_png(&path),
         };
         match result {
-            Ok(()) if purpose != Purpose::OpenVolume => {
+            Ok(()) if !matches!(purpose, Purpose::OpenVolume | Purpose::OpenFolder) => {
                 let verb = if purpose == Purpose::LoadTf {
                     "Loaded"
                 } else {

@@ -14,6 +14,8 @@ use super::loading::VOLUME_EXTENSIONS;
 pub enum Purpose {
     /// Pick a volume file to open.
     OpenVolume,
+    /// Pick a directory (a DICOM series) to open.
+    OpenFolder,
     /// Pick a TF JSON file to load.
     LoadTf,
     /// Choose where to save the TF as JSON.
@@ -89,6 +91,7 @@ impl Dialogs {
                         .add_filter("Volumes", VOLUME_EXTENSIONS)
                         .add_filter("All files", &["*"])
                         .pick_file(),
+                    Purpose::OpenFolder => d.set_title("Open DICOM series folder").pick_folder(),
                     Purpose::LoadTf => d
                         .set_title("Load transfer function")
                         .add_filter("Transfer function (JSON)", &["json"])

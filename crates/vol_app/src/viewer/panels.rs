@@ -32,14 +32,21 @@ impl ViewerApp {
             {
                 self.show_dialog(Purpose::OpenVolume);
             }
+            if ui
+                .add_enabled(!self.dialogs.is_open(), egui::Button::new("Folder…"))
+                .on_hover_text("Open a DICOM series: the folder of its slices")
+                .clicked()
+            {
+                self.show_dialog(Purpose::OpenFolder);
+            }
             if ui.button("Demo volume").clicked() {
                 self.open_demo();
             }
         });
         let l = ui.label("Path:");
         ui.horizontal(|ui| {
-            let edit =
-                egui::TextEdit::singleline(&mut self.path_input).hint_text("/path/to/volume.vol");
+            let edit = egui::TextEdit::singleline(&mut self.path_input)
+                .hint_text("volume file or DICOM folder");
             let size = egui::vec2(ui.available_width() - 60.0, ui.spacing().interact_size.y);
             let edit = ui.add_sized(size, edit).labelled_by(l.id);
             let enter = edit.lost_focus() && ui.input(|i| i.key_pressed(egui::Key::Enter));
