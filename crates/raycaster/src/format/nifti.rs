@@ -254,7 +254,6 @@ pub fn open_with(
         order: AxisOrder::XFast,
     };
     layout.validate(path)?;
-    let bytes = layout.byte_len(path)?;
     let rescale = h.rescale();
 
     let (data_path, offset) = if h.single_file {
@@ -282,24 +281,12 @@ pub fn open_with(
         let skip = if h.single_file { skip } else { offset };
         std::io::copy(&mut s.by_ref().take(skip), &mut std::io::sink())
             .map_err(|e| invalid(path, format!("gzip data is corrupt or truncated ({e})")))?;
-        let mut data = Vec::with_capacity(bytes.min(file_bytes.saturating_mul(1032)) as usize);
-        s.take(bytes)
-            .read_to_end(&mut data)
-            .map_err(|e| invalid(path, format!("gzip data is corrupt or truncated ({e})")))?;
-        if (data.len() as u64) < bytes {
-            return Err(Error::format(
-                path,
-                FormatError::WrongLength {
-                    expected: offset.saturating_add(bytes),
-                    found: offset + data.len() as u64,
-                    detail: format!(
-                        "decompressed: {offset}-byte header + {}x{}x{} {} samples",
-                        layout.dims.x, layout.dims.y, layout.dims.z, ty
-                    ),
-                },
-            ));
-        }
-        samples::from_bytes(path, &data, &layout, rescale)?
+        let stream = samples::Stream {
+            offset,
+            max_bytes: Some(super::max_inflated(file_bytes)),
+            compression: Some("gzip"),
+        };
+        samples::from_reader(path, s, &layout, rescale, stream)?
     } else {
         samples::from_file(&data_path, offset, &layout, rescale, mode, false)?
     };

@@ -366,8 +366,13 @@ pub fn open_with(
                 .map_err(|e| Error::io(data, e))?;
             let start = h.data_offset.unwrap_or(0);
             let counted = super::ProgressReader::new(f, data_len.saturating_sub(start), progress);
-            let decoded = super::gunzip(data, std::io::BufReader::new(counted), bytes)?;
-            samples::from_bytes(data, &decoded, &layout, None)?
+            let gz = flate2::read::MultiGzDecoder::new(std::io::BufReader::new(counted));
+            let stream = samples::Stream {
+                offset: 0,
+                max_bytes: Some(super::max_inflated(data_len.saturating_sub(start))),
+                compression: Some("gzip"),
+            };
+            samples::from_reader(data, gz, &layout, None, stream)?
         }
     };
     let mut file_bytes = super::file_len(path)?;

@@ -189,42 +189,101 @@ pub fn from_file(
             },
         );
     }
-    let storage = Storage::<u8>::open(path, offset, bytes as usize, LoadMode::Ram)?;
-    from_bytes(path, storage.as_slice(), layout, rescale)
+    use std::io::{Seek, SeekFrom};
+    let mut file = std::fs::File::open(path).map_err(|e| Error::io(path, e))?;
+    file.seek(SeekFrom::Start(offset))
+        .map_err(|e| Error::io(path, e))?;
+    from_reader(
+        path,
+        std::io::BufReader::with_capacity(1 << 20, file),
+        layout,
+        rescale,
+        Stream {
+            offset,
+            ..Stream::default()
+        },
+    )
+}
+
+/// Where a sample stream comes from, for [`from_reader`]'s checks and error
+/// messages.
+#[derive(Debug, Clone, Copy, Default)]
+pub struct Stream {
+    /// Bytes of the file (or decompressed stream) before the samples,
+    /// added to the counts in a length error.
+    pub offset: u64,
+    /// The most bytes the stream can yield (gzip expands at most about
+    /// 1032:1): a header that promises more is rejected before the memory
+    /// for it is allocated.
+    pub max_bytes: Option<u64>,
+    /// The compression, named in errors (`Some("gzip")`); `None` for
+    /// samples read as stored.
+    pub compression: Option<&'static str>,
+}
+
+/// Builds a volume in RAM from the sample bytes that `reader` yields,
+/// exactly as the file stores them (a file at the samples' offset, a gzip
+/// decoder, a slice): read straight into the typed array, then byte-swapped
+/// in place and rescaled, so a decode needs no second copy of the data.
+pub fn from_reader(
+    path: &Path,
+    mut reader: impl std::io::Read,
+    layout: &SampleLayout,
+    rescale: Option<Rescale>,
+    stream: Stream,
+) -> Result<AnyVolume> {
+    layout.validate(path)?;
+    let bytes = layout.byte_len(path)?;
+    let describe = || {
+        format!(
+            "{}{}-byte header + {}x{}x{} {} samples",
+            if stream.compression.is_some() {
+                "decompressed: "
+            } else {
+                ""
+            },
+            stream.offset,
+            layout.dims.x,
+            layout.dims.y,
+            layout.dims.z,
+            layout.sample
+        )
+    };
+    if let Some(max) = stream.max_bytes
+        && bytes > max
+    {
+        return Err(Error::format(
+            path,
+            FormatError::Invalid(format!(
+                "the header promises {bytes} bytes of samples ({}), more than the {} data in the file can hold",
+                describe(),
+                stream.compression.unwrap_or("compressed")
+            )),
+        ));
+    }
+    let reader: &mut dyn std::io::Read = &mut reader;
+    dispatch_type(
+        layout.sample,
+        ReadVisitor {
+            path,
+            reader,
+            layout,
+            rescale,
+            stream,
+            describe: &describe,
+        },
+    )
 }
 
 /// Builds a volume in RAM from the sample bytes `bytes` (exactly as the file
-/// stores them, e.g. after gunzip).
+/// stores them, e.g. after gunzip); extra bytes at the end are ignored.
 pub fn from_bytes(
     path: &Path,
     bytes: &[u8],
     layout: &SampleLayout,
     rescale: Option<Rescale>,
 ) -> Result<AnyVolume> {
-    layout.validate(path)?;
-    let want = layout.byte_len(path)?;
-    if (bytes.len() as u64) < want {
-        return Err(Error::format(
-            path,
-            FormatError::WrongLength {
-                expected: want,
-                found: bytes.len() as u64,
-                detail: format!(
-                    "decoded data of {}x{}x{} {} samples",
-                    layout.dims.x, layout.dims.y, layout.dims.z, layout.sample
-                ),
-            },
-        ));
-    }
-    let bytes = &bytes[..want as usize];
-    dispatch_type(
-        layout.sample,
-        DecodeVisitor {
-            bytes,
-            layout,
-            rescale,
-        },
-    )
+    from_reader(path, bytes, layout, rescale, Stream::default())
 }
 
 /// Builds a volume in RAM from typed samples in `order`, applying `rescale`.
@@ -239,7 +298,7 @@ where
 {
     match rescale {
         None => Ok(LinearVolume::with_order(grid, Storage::from_vec(samples), order)?.into()),
-        Some(r) => rescaled(grid, &samples, order, r),
+        Some(r) => rescaled(grid, samples, order, r),
     }
 }
 
@@ -248,11 +307,11 @@ where
 /// units), else to `f32`.
 fn rescaled<S: Sample>(
     grid: Grid,
-    samples: &[S],
+    samples: Vec<S>,
     order: AxisOrder,
     r: Rescale,
 ) -> Result<AnyVolume> {
-    let (lo, hi) = crate::volume::fold_range_f32(samples);
+    let (lo, hi) = crate::volume::fold_range_f32(&samples);
     let whole = |v: f64| v.fract() == 0.0;
     let fits = |v: f64| (i16::MIN as f64..=i16::MAX as f64).contains(&v);
     let integral = !matches!(S::TYPE, SampleType::F32);
@@ -265,17 +324,35 @@ fn rescaled<S: Sample>(
         && fits(r.apply(hi as f64))
     {
         let (m, c) = (r.slope as i32, r.intercept as i32);
-        let v: Vec<i16> = samples
-            .iter()
-            .map(|&s| (s.to_f32() as i32 * m + c) as i16)
-            .collect();
+        let v = convert(samples, |s| (s.to_f32() as i32 * m + c) as i16);
         return Ok(LinearVolume::with_order(grid, Storage::from_vec(v), order)?.into());
     }
-    let v: Vec<f32> = samples
-        .iter()
-        .map(|&s| r.apply(s.to_f32() as f64) as f32)
-        .collect();
+    let v = convert(samples, |s| r.apply(s.to_f32() as f64) as f32);
     Ok(LinearVolume::with_order(grid, Storage::from_vec(v), order)?.into())
+}
+
+/// `samples` mapped by `f`, in place when the two types have the same size
+/// (u16 or i16 to i16, f32 to f32: a CT volume needs no second copy).
+fn convert<S: Sample, T: Sample>(mut samples: Vec<S>, f: impl Fn(S) -> T) -> Vec<T> {
+    if std::mem::size_of::<S>() == std::mem::size_of::<T>()
+        && std::mem::align_of::<S>() == std::mem::align_of::<T>()
+    {
+        let size = std::mem::size_of::<S>();
+        let bytes: &mut [u8] = bytemuck::cast_slice_mut(&mut samples);
+        for slot in bytes.chunks_exact_mut(size) {
+            let value = f(bytemuck::pod_read_unaligned(slot));
+            slot.copy_from_slice(bytemuck::bytes_of(&value));
+        }
+        return match bytemuck::allocation::try_cast_vec::<S, T>(samples) {
+            Ok(v) => v,
+            // Not expected with equal size and alignment; copy if it happens.
+            Err((_, samples)) => bytemuck::cast_slice::<S, u8>(&samples)
+                .chunks_exact(size)
+                .map(bytemuck::pod_read_unaligned)
+                .collect(),
+        };
+    }
+    samples.into_iter().map(f).collect()
 }
 
 /// Sample types that can be decoded from (and encoded to) bytes in either
@@ -346,26 +423,61 @@ impl TypeVisitor for MapVisitor<'_> {
     }
 }
 
-struct DecodeVisitor<'a> {
-    bytes: &'a [u8],
+struct ReadVisitor<'a> {
+    path: &'a Path,
+    reader: &'a mut dyn std::io::Read,
     layout: &'a SampleLayout,
     rescale: Option<Rescale>,
+    stream: Stream,
+    describe: &'a dyn Fn() -> String,
 }
 
-impl TypeVisitor for DecodeVisitor<'_> {
+impl TypeVisitor for ReadVisitor<'_> {
     fn visit<S: Sample + Decode>(self) -> Result<AnyVolume>
     where
         AnyVolume: From<LinearVolume<S>>,
     {
+        let path = self.path;
+        let count =
+            usize::try_from(self.layout.dims.as_u64vec3().element_product()).map_err(|_| {
+                Error::InvalidArgument(format!("{}: too large for this machine", path.display()))
+            })?;
+        let mut samples = vec![S::zeroed(); count];
+        let buf: &mut [u8] = bytemuck::cast_slice_mut(&mut samples);
+        let mut filled = 0;
+        while filled < buf.len() {
+            match self.reader.read(&mut buf[filled..]) {
+                Ok(0) => break,
+                Ok(n) => filled += n,
+                Err(e) if e.kind() == std::io::ErrorKind::Interrupted => {}
+                Err(e) if self.stream.compression.is_some() => {
+                    let compression = self.stream.compression.unwrap_or("compressed");
+                    return Err(Error::format(
+                        path,
+                        FormatError::Invalid(format!(
+                            "{compression} data is corrupt or truncated ({e})"
+                        )),
+                    ));
+                }
+                Err(e) => return Err(Error::io(path, e)),
+            }
+        }
+        if filled < buf.len() {
+            return Err(Error::format(
+                path,
+                FormatError::WrongLength {
+                    expected: self.stream.offset.saturating_add(buf.len() as u64),
+                    found: self.stream.offset.saturating_add(filled as u64),
+                    detail: (self.describe)(),
+                },
+            ));
+        }
         let size = std::mem::size_of::<S>();
-        let samples: Vec<S> = if size == 1 || self.layout.endian == Endian::NATIVE {
-            bytemuck::pod_collect_to_vec(self.bytes)
-        } else {
-            self.bytes
-                .chunks_exact(size)
-                .map(|c| S::decode(c, self.layout.endian))
-                .collect()
-        };
+        if size > 1 && self.layout.endian != Endian::NATIVE {
+            for sample in buf.chunks_exact_mut(size) {
+                sample.reverse();
+            }
+        }
         from_samples(self.layout.grid(), samples, self.layout.order, self.rescale)
     }
 }
