@@ -56,17 +56,20 @@ impl Renderer for Flaky {
     fn threads(&self) -> usize {
         1
     }
-    fn render<V: VolumeSource>(
+    fn render_cancellable<V: VolumeSource>(
         &mut self,
         scene: &Scene<V>,
         camera: &Camera,
         tf: &TransferFunction,
         options: &RenderOptions,
-    ) -> raycaster::Result<Frame> {
+        cancel: Cancel<'_>,
+    ) -> raycaster::Result<Option<Frame>> {
         match camera.width {
             13 => Err(raycaster::Error::InvalidArgument("13 is unlucky".into())),
             11 => panic!("11 is worse"),
-            _ => self.0.render(scene, camera, tf, options),
+            _ => self
+                .0
+                .render_cancellable(scene, camera, tf, options, cancel),
         }
     }
 }

@@ -77,6 +77,19 @@ pub fn header_matches(head: &[u8], file_len: u64) -> bool {
         .is_some_and(|h| h.dims.min_element() > 0 && h.file_len() == Some(file_len))
 }
 
+/// True when `head` parses as a UC Davis header with sensible fields
+/// (dimensions 1..=65536, border below 256, finite positive cell sizes),
+/// whatever the file's length.
+pub fn header_plausible(head: &[u8]) -> bool {
+    DavisHeader::parse(head).is_some_and(|h| {
+        h.dims.min_element() > 0
+            && h.dims.max_element() <= 1 << 16
+            && h.border < 256
+            && h.spacing.is_finite()
+            && h.spacing.min_element() > 0.0
+    })
+}
+
 /// Opens a UC Davis `.vol` file.
 pub fn open(path: &Path, mode: LoadMode) -> Result<Opened> {
     let head = super::read_head(path, HEADER_LEN)?;
@@ -106,4 +119,45 @@ pub fn open(path: &Path, mode: LoadMode) -> Result<Opened> {
         ));
     }
     Ok(Opened { volume, info })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn header(dims: [u32; 3]) -> DavisHeader {
+        DavisHeader {
+            dims: UVec3::from_array(dims),
+            border: 0,
+            spacing: Vec3::new(1.0, 1.0, 2.0),
+        }
+    }
+
+    #[test]
+    fn a_truncated_davis_file_is_reported_as_one() {
+        let dir = std::env::temp_dir().join(format!("rc-davis-{}", std::process::id()));
+        std::fs::create_dir_all(&dir).unwrap();
+        let path = dir.join("cut.vol");
+        let mut bytes = header([4, 5, 6]).to_bytes().to_vec();
+        bytes.extend(vec![7u8; 100]); // 120 samples needed
+        std::fs::write(&path, &bytes).unwrap();
+        assert_eq!(super::super::detect(&path).unwrap(), FileFormat::DavisVol);
+        let e = super::super::open_file(&path, &Default::default()).unwrap_err();
+        let msg = e.to_string();
+        assert!(msg.contains("expected 148 bytes"), "{msg}");
+        assert!(msg.contains("cut.vol"), "{msg}");
+        bytes.extend(vec![7u8; 20]);
+        std::fs::write(&path, &bytes).unwrap();
+        let ok = super::super::open_file(&path, &Default::default()).unwrap();
+        assert_eq!(ok.info.dims, UVec3::new(4, 5, 6));
+        std::fs::remove_dir_all(&dir).ok();
+    }
+
+    #[test]
+    fn plausibility_rejects_garbage() {
+        assert!(header_plausible(&header([4, 5, 6]).to_bytes()));
+        assert!(!header_plausible(&header([0, 5, 6]).to_bytes()));
+        assert!(!header_plausible(&header([4, 5, 1 << 20]).to_bytes()));
+        assert!(!header_plausible(&[0u8; 10]));
+    }
 }

@@ -250,7 +250,11 @@ pub fn detect(path: &Path) -> Result<FileFormat> {
             // length matches the file decides.
             if vol::header_matches(&head, meta.len()) {
                 Ok(FileFormat::Vol)
-            } else if davis::header_matches(&head, meta.len()) {
+            } else if davis::header_matches(&head, meta.len())
+                || (vol::VolHeader::parse(&head).is_err() && davis::header_plausible(&head))
+            {
+                // A UC Davis file, or one whose length is wrong: its own
+                // reader reports the mismatch.
                 Ok(FileFormat::DavisVol)
             } else {
                 // Let the .vol reader say what is wrong with the header.

@@ -177,20 +177,6 @@ impl Renderer for AnyRenderer {
         }
     }
 
-    fn render<V: VolumeSource>(
-        &mut self,
-        scene: &Scene<V>,
-        camera: &Camera,
-        tf: &TransferFunction,
-        options: &RenderOptions,
-    ) -> Result<Frame> {
-        match self {
-            AnyRenderer::Serial(r) => r.render(scene, camera, tf, options),
-            AnyRenderer::Tiles(r) => r.render(scene, camera, tf, options),
-            AnyRenderer::Object(r) => r.render(scene, camera, tf, options),
-        }
-    }
-
     fn render_cancellable<V: VolumeSource>(
         &mut self,
         scene: &Scene<V>,

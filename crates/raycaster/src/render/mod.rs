@@ -49,26 +49,19 @@ use crate::scene::{Scene, VolumeSource};
 use crate::transfer::TransferFunction;
 
 /// A renderer: turns a scene, camera, TF and options into a frame.
+///
+/// An implementation provides [`Renderer::render_cancellable`];
+/// [`Renderer::render`] is the same frame without a way to stop it.
 pub trait Renderer: Send {
     /// Short name (`serial`, `tiles`, `object`).
     fn name(&self) -> &'static str;
     /// Worker threads used.
     fn threads(&self) -> usize;
-    /// Renders one frame.
-    fn render<V: VolumeSource>(
-        &mut self,
-        scene: &Scene<V>,
-        camera: &Camera,
-        tf: &TransferFunction,
-        options: &RenderOptions,
-    ) -> Result<Frame>;
 
     /// Renders one frame unless `cancel` fires first; `Ok(None)` when it
-    /// did. Renderers check `cancel` between pieces of work (tiles, tasks),
-    /// so a superseded frame stops within one piece.
-    ///
-    /// The default only checks before and after a whole [`Renderer::render`];
-    /// every renderer of this crate checks between tiles or tasks.
+    /// did. The renderers of this crate check `cancel` between pieces of work
+    /// (tiles, tasks), so a superseded frame stops within one piece; a
+    /// renderer that cannot stop midway may check it only at the start.
     fn render_cancellable<V: VolumeSource>(
         &mut self,
         scene: &Scene<V>,
@@ -76,12 +69,23 @@ pub trait Renderer: Send {
         tf: &TransferFunction,
         options: &RenderOptions,
         cancel: Cancel<'_>,
-    ) -> Result<Option<Frame>> {
-        if cancel.is_cancelled() {
-            return Ok(None);
+    ) -> Result<Option<Frame>>;
+
+    /// Renders one frame.
+    fn render<V: VolumeSource>(
+        &mut self,
+        scene: &Scene<V>,
+        camera: &Camera,
+        tf: &TransferFunction,
+        options: &RenderOptions,
+    ) -> Result<Frame> {
+        match self.render_cancellable(scene, camera, tf, options, Cancel::never())? {
+            Some(frame) => Ok(frame),
+            None => Err(crate::Error::InvalidArgument(format!(
+                "the {} renderer stopped a frame that could not be cancelled",
+                self.name()
+            ))),
         }
-        let frame = self.render(scene, camera, tf, options)?;
-        Ok((!cancel.is_cancelled()).then_some(frame))
     }
 }
 

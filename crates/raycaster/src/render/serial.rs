@@ -73,17 +73,6 @@ impl Renderer for SerialRenderer {
         1
     }
 
-    fn render<V: VolumeSource>(
-        &mut self,
-        scene: &Scene<V>,
-        camera: &Camera,
-        tf: &TransferFunction,
-        options: &RenderOptions,
-    ) -> Result<Frame> {
-        let frame = self.render_cancellable(scene, camera, tf, options, Cancel::never())?;
-        Ok(frame.expect("a frame that cannot be cancelled was cancelled"))
-    }
-
     fn render_cancellable<V: VolumeSource>(
         &mut self,
         scene: &Scene<V>,
