@@ -46,6 +46,52 @@ pub enum Command {
     /// Describe a volume file: format, dimensions, sample type, spacing,
     /// value range, orientation as stored, size on disk and in memory.
     Info(InfoArgs),
+    /// Convert a volume to another format, chosen by OUT's name: .vol,
+    /// .nrrd, .nii, .nii.gz, .raw/.bin (x fastest, little-endian).
+    Convert(ConvertArgs),
+}
+
+/// `vol_app convert IN OUT`.
+#[derive(Debug, Args)]
+#[command(
+    after_help = "Samples keep their type, except for .vol (8-bit): other data is mapped \
+linearly from --window (default: the value range) to 0..255.\n\nExamples:\n  vol_app convert \
+head.nii.gz head.nrrd --gzip\n  vol_app convert series_dir/ ct.nii.gz\n  vol_app convert ct.nii.gz \
+ct.vol --window -1000,2000 --layout bricked --block-size 16"
+)]
+pub struct ConvertArgs {
+    /// Volume file or DICOM directory to read.
+    pub input: PathBuf,
+    /// File to write; it appears only when complete and is never
+    /// overwritten without --force.
+    pub output: PathBuf,
+    /// Replace OUT if it exists.
+    #[arg(long)]
+    pub force: bool,
+    /// gzip-encode an .nrrd output.
+    #[arg(long)]
+    pub gzip: bool,
+    /// Layout of a .vol output.
+    #[arg(long, value_enum, default_value_t = VolLayoutArg::Linear)]
+    pub layout: VolLayoutArg,
+    /// Brick side of a bricked .vol output.
+    #[arg(long, value_name = "B", default_value_t = 16, value_parser = clap::value_parser!(u8).range(2..))]
+    pub block_size: u8,
+    /// For a .vol output: the data values mapped to 0 and 255.
+    #[arg(long, value_name = "LO,HI", allow_hyphen_values = true, value_parser = parse_window)]
+    pub window: Option<(f32, f32)>,
+    /// How to read a headerless input.
+    #[command(flatten)]
+    pub raw: RawArgs,
+}
+
+/// `.vol` layout.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, clap::ValueEnum)]
+pub enum VolLayoutArg {
+    /// z fastest, one array.
+    Linear,
+    /// Overlapping bricks of --block-size.
+    Bricked,
 }
 
 /// `vol_app info FILE`.
@@ -317,6 +363,24 @@ fn parse_vec3(s: &str) -> Result<Vec3, String> {
         }
     }
     Ok(Vec3::from_array(v))
+}
+
+fn parse_window(s: &str) -> Result<(f32, f32), String> {
+    let (a, b) = s
+        .split_once(',')
+        .ok_or_else(|| format!("expected LO,HI, got '{s}'"))?;
+    let p = |t: &str| {
+        t.trim()
+            .parse::<f32>()
+            .ok()
+            .filter(|v| v.is_finite())
+            .ok_or_else(|| format!("'{t}' is not a finite number"))
+    };
+    let (lo, hi) = (p(a)?, p(b)?);
+    if hi <= lo {
+        return Err(format!("window {lo},{hi} is empty (LO must be below HI)"));
+    }
+    Ok((lo, hi))
 }
 
 fn parse_dims(s: &str) -> Result<glam::UVec3, String> {

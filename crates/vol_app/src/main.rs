@@ -5,6 +5,7 @@
 //! [`vol_app::viewer`]).
 
 mod cli;
+mod convert_cmd;
 mod info_cmd;
 mod progress;
 mod render_cmd;
@@ -38,6 +39,7 @@ fn main() -> ExitCode {
     let result = match cli.command {
         Some(cli::Command::Render(args)) => render_cmd::run(&args),
         Some(cli::Command::Info(args)) => info_cmd::run(&args),
+        Some(cli::Command::Convert(args)) => convert_cmd::run(&args),
         None => run_viewer(cli.viewer),
     };
     match result {

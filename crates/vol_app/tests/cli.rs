@@ -467,3 +467,79 @@ fn raw_options_read_headerless_files_in_either_order() {
     let out = bin().arg("info").arg(&raw_z).output().unwrap();
     assert_one_line_error(&out, "--raw-dims");
 }
+
+#[test]
+fn convert_round_trips_through_every_output_format() {
+    use raycaster::volume::Volume;
+    let dir = TempDir::new("convert");
+    let original = ball_file(&dir, VolLayout::Linear);
+    let convert = |input: &PathBuf, output: &str, extra: &[&str]| {
+        let out_path = dir.path(output);
+        let out = bin()
+            .arg("convert")
+            .arg(input)
+            .arg(&out_path)
+            .args(extra)
+            .output()
+            .unwrap();
+        assert!(
+            out.status.success(),
+            "{}",
+            String::from_utf8_lossy(&out.stderr)
+        );
+        out_path
+    };
+    let nii = convert(&original, "a.nii.gz", &[]);
+    let nrrd = convert(&nii, "b.nrrd", &["--gzip"]);
+    let raw = convert(&nrrd, "c.raw", &[]);
+    let vol = convert(
+        &raw,
+        "d.vol",
+        &[
+            "--raw-dims",
+            "24,24,24",
+            "--raw-type",
+            "u8",
+            "--layout",
+            "bricked",
+            "--block-size",
+            "7",
+        ],
+    );
+    let open = |p: &PathBuf| raycaster::format::open(p, raycaster::storage::LoadMode::Map).unwrap();
+    let (a, b) = (open(&original), open(&vol));
+    assert_eq!(b.layout(), raycaster::volume::Layout::Bricked { side: 7 });
+    let voxels = |v: &raycaster::volume::AnyVolume| -> Vec<f32> {
+        raycaster::dispatch_volume!(v, v => {
+            let d = v.grid().dims;
+            (0..d.x)
+                .flat_map(|x| (0..d.y).flat_map(move |y| (0..d.z).map(move |z| UVec3::new(x, y, z))))
+                .map(|p| raycaster::sample::Sample::to_f32(v.voxel(p)))
+                .collect()
+        })
+    };
+    assert_eq!(voxels(&a), voxels(&b), "the chain changed the voxels");
+    // Never overwrites without --force; a bad window or name is one line.
+    let out = bin()
+        .arg("convert")
+        .arg(&original)
+        .arg(&nii)
+        .output()
+        .unwrap();
+    assert_one_line_error(&out, "already exists");
+    let out = bin()
+        .arg("convert")
+        .arg(&original)
+        .arg(dir.path("e.vol"))
+        .args(["--window", "5,5"])
+        .output()
+        .unwrap();
+    assert_one_line_error(&out, "LO must be below HI");
+    let out = bin()
+        .arg("convert")
+        .arg(&original)
+        .arg(dir.path("e.png"))
+        .output()
+        .unwrap();
+    assert_one_line_error(&out, "cannot tell the output format");
+}

@@ -17,6 +17,9 @@
 //! | [`dicom`] | a directory (or one file) of a DICOM series |
 //! | [`raw`] | headerless samples described on the command line |
 //!
+//! [`save::save`] writes any volume as `.vol`, NRRD, NIfTI-1 or raw, the
+//! format chosen by the file name.
+//!
 //! ```no_run
 //! use raycaster::format::{open_file, OpenOptions};
 //! let opened = open_file("head.nii.gz".as_ref(), &OpenOptions::default())?;
@@ -31,6 +34,7 @@ pub mod nifti;
 pub mod nrrd;
 pub mod raw;
 pub mod samples;
+pub mod save;
 pub mod vol;
 
 use std::path::Path;
