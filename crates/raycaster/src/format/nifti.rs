@@ -335,6 +335,22 @@ pub fn write(
     le_bytes: &[u8],
     rescale: Option<Rescale>,
 ) -> Result<()> {
+    write_with(path, dims, spacing, sample, rescale, |w| {
+        w.write_all(le_bytes)
+    })
+}
+
+/// As [`write`], with the samples (x fastest, little-endian) written by
+/// `samples` into the file or the gzip stream: a volume can be streamed
+/// without a copy of its bytes in memory.
+pub fn write_with(
+    path: &Path,
+    dims: UVec3,
+    spacing: Vec3,
+    sample: SampleType,
+    rescale: Option<Rescale>,
+    samples: impl FnOnce(&mut dyn std::io::Write) -> std::io::Result<()>,
+) -> Result<()> {
     use std::io::Write;
     let mut h = vec![0u8; HEADER_LEN + 4];
     let put_i16 = |h: &mut [u8], o: usize, v: i16| h[o..o + 2].copy_from_slice(&v.to_le_bytes());
@@ -374,11 +390,11 @@ pub fn write(
         if gz {
             let mut e = flate2::write::GzEncoder::new(w, flate2::Compression::fast());
             e.write_all(&h)?;
-            e.write_all(le_bytes)?;
+            samples(&mut e)?;
             e.finish().map(|_| ())
         } else {
             w.write_all(&h)?;
-            w.write_all(le_bytes)
+            samples(w)
         }
     })
 }

@@ -408,6 +408,22 @@ pub fn write(
     le_bytes: &[u8],
     encoding: Encoding,
 ) -> Result<()> {
+    write_with(path, dims, spacing, sample, encoding, |w| {
+        w.write_all(le_bytes)
+    })
+}
+
+/// As [`write`], with the samples (x fastest, little-endian) written by
+/// `samples` into the file or the gzip stream: a volume can be streamed
+/// without a copy of its bytes in memory.
+pub fn write_with(
+    path: &Path,
+    dims: UVec3,
+    spacing: Vec3,
+    sample: SampleType,
+    encoding: Encoding,
+    samples: impl FnOnce(&mut dyn std::io::Write) -> std::io::Result<()>,
+) -> Result<()> {
     use std::io::Write;
     let type_name = match sample {
         SampleType::U8 => "uchar",
@@ -432,10 +448,10 @@ pub fn write(
     super::vol::write_atomically(path, |w| {
         w.write_all(header.as_bytes())?;
         match encoding {
-            Encoding::Raw => w.write_all(le_bytes),
+            Encoding::Raw => samples(w),
             Encoding::Gzip => {
                 let mut gz = flate2::write::GzEncoder::new(w, flate2::Compression::fast());
-                gz.write_all(le_bytes)?;
+                samples(&mut gz)?;
                 gz.finish().map(|_| ())
             }
         }

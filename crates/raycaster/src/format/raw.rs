@@ -103,7 +103,5 @@ pub fn write(
     order: AxisOrder,
     endian: Endian,
 ) -> Result<()> {
-    use std::io::Write;
-    let bytes = samples::encode_volume(volume, order, endian);
-    super::vol::write_atomically(path, |w| w.write_all(&bytes))
+    super::vol::write_atomically(path, |w| samples::write_samples(w, volume, order, endian))
 }

@@ -495,34 +495,51 @@ pub(crate) fn parse_triple<T: std::str::FromStr>(text: &str) -> Option<[T; 3]> {
 /// The samples of `volume` as bytes in `order` and `endian` order: what a
 /// writer of a headerless array puts in a file.
 pub fn encode_volume(volume: &AnyVolume, order: AxisOrder, endian: Endian) -> Vec<u8> {
-    fn go<V: crate::volume::Volume>(v: &V, order: AxisOrder, endian: Endian) -> Vec<u8>
+    let mut out = Vec::with_capacity(volume.memory_bytes() as usize);
+    match write_samples(&mut out, volume, order, endian) {
+        Ok(()) => out,
+        Err(_) => unreachable!("writing to a Vec cannot fail"),
+    }
+}
+
+/// Writes the samples of `volume` to `w` in `order` and `endian` order, one
+/// row at a time (no copy of the whole volume in memory).
+pub fn write_samples(
+    w: &mut dyn std::io::Write,
+    volume: &AnyVolume,
+    order: AxisOrder,
+    endian: Endian,
+) -> std::io::Result<()> {
+    fn go<V: crate::volume::Volume>(
+        w: &mut dyn std::io::Write,
+        v: &V,
+        order: AxisOrder,
+        endian: Endian,
+    ) -> std::io::Result<()>
     where
         V::Sample: Decode,
     {
         let d = v.grid().dims;
-        let mut out = Vec::with_capacity(v.grid().voxel_count() as usize * V::Sample::TYPE.size());
-        let mut put = |x, y, z| v.voxel(UVec3::new(x, y, z)).encode(endian, &mut out);
-        match order {
-            AxisOrder::XFast => {
-                for z in 0..d.z {
-                    for y in 0..d.y {
-                        for x in 0..d.x {
-                            put(x, y, z);
-                        }
-                    }
+        // Outer, middle and row axes for the order.
+        let (outer, middle, row) = match order {
+            AxisOrder::XFast => (d.z, d.y, d.x),
+            AxisOrder::ZFast => (d.x, d.y, d.z),
+        };
+        let mut buf = Vec::with_capacity(row as usize * V::Sample::TYPE.size());
+        for a in 0..outer {
+            for b in 0..middle {
+                buf.clear();
+                for c in 0..row {
+                    let p = match order {
+                        AxisOrder::XFast => UVec3::new(c, b, a),
+                        AxisOrder::ZFast => UVec3::new(a, b, c),
+                    };
+                    v.voxel(p).encode(endian, &mut buf);
                 }
-            }
-            AxisOrder::ZFast => {
-                for x in 0..d.x {
-                    for y in 0..d.y {
-                        for z in 0..d.z {
-                            put(x, y, z);
-                        }
-                    }
-                }
+                w.write_all(&buf)?;
             }
         }
-        out
+        Ok(())
     }
-    crate::dispatch_volume!(volume, v => go(v, order, endian))
+    crate::dispatch_volume!(volume, v => go(w, v, order, endian))
 }

@@ -8,7 +8,7 @@ use std::path::Path;
 use glam::UVec3;
 
 use super::nrrd::Encoding;
-use super::samples::{Endian, encode_volume};
+use super::samples::{Endian, write_samples};
 use super::vol::VolLayout;
 use crate::error::{Error, Result};
 use crate::sample::{Sample, SampleType};
@@ -89,20 +89,22 @@ pub fn save(path: &Path, volume: &AnyVolume, options: &SaveOptions) -> Result<Ou
             super::vol::write(path, &eight_bit, layout)?;
         }
         OutputFormat::Nrrd(encoding) => {
-            let bytes = encode_volume(volume, AxisOrder::XFast, Endian::Little);
             let t = volume.sample_type();
-            super::nrrd::write(path, grid.dims, grid.spacing, t, &bytes, encoding)?;
+            super::nrrd::write_with(path, grid.dims, grid.spacing, t, encoding, |w| {
+                write_samples(w, volume, AxisOrder::XFast, Endian::Little)
+            })?;
         }
         OutputFormat::Nifti { .. } => {
-            let bytes = encode_volume(volume, AxisOrder::XFast, Endian::Little);
-            let t = volume.sample_type();
             if grid.dims.max_element() > i16::MAX as u32 {
                 return Err(Error::InvalidArgument(format!(
                     "{}: NIfTI-1 dimensions are at most 32767",
                     path.display()
                 )));
             }
-            super::nifti::write(path, grid.dims, grid.spacing, t, &bytes, None)?;
+            let t = volume.sample_type();
+            super::nifti::write_with(path, grid.dims, grid.spacing, t, None, |w| {
+                write_samples(w, volume, AxisOrder::XFast, Endian::Little)
+            })?;
         }
         OutputFormat::Raw => {
             super::raw::write(path, volume, AxisOrder::XFast, Endian::Little)?;
