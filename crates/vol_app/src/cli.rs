@@ -27,7 +27,9 @@ pub struct Cli {
 /// Options of the interactive viewer (`vol_app [FILE]`).
 #[derive(Debug, Args)]
 pub struct ViewerArgs {
-    /// Volume file to open in the viewer. Without it, the built-in demo volume.
+    /// Volume to open in the viewer (.vol, .nrrd, .nhdr, .nii, .nii.gz, a
+    /// DICOM directory or file, raw with --raw-dims/--raw-type). Without it,
+    /// the built-in demo volume.
     pub file: Option<PathBuf>,
     /// Transfer function for the first volume: shapes, skull, ramp, ct-bone,
     /// ct-soft, mr-default.
@@ -36,6 +38,9 @@ pub struct ViewerArgs {
     /// Transfer function JSON file for the first volume (SPEC §4).
     #[arg(long, value_name = "FILE.json", conflicts_with = "tf_preset")]
     pub tf: Option<PathBuf>,
+    /// How to read a headerless FILE.
+    #[command(flatten)]
+    pub raw: RawArgs,
 }
 
 /// Subcommands.

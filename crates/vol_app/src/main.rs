@@ -66,10 +66,12 @@ fn run_viewer(args: cli::ViewerArgs) -> Result<(), anyhow_like::Error> {
         Some(path) => Some(TransferFunction::from_json_file(path)?),
         None => None,
     };
+    let raw = args.raw.open_options(raycaster::storage::LoadMode::Map).raw;
     viewer::run(StartOptions {
         file: args.file,
         tf_preset: args.tf_preset,
         tf,
+        raw,
     })?;
     Ok(())
 }

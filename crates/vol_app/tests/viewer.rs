@@ -157,6 +157,7 @@ fn open_file(dir: &TempDir) -> (H, PathBuf) {
             file: Some(path.clone()),
             tf_preset: Some("shapes".into()),
             tf: None,
+            raw: None,
         },
         quick_settings(),
     );
@@ -298,6 +299,39 @@ fn opens_a_16_bit_nifti_with_a_rescale_and_shows_what_the_file_stores() {
     ] {
         h.get_by_label(label);
     }
+}
+
+#[test]
+fn opens_a_raw_file_described_on_the_command_line() {
+    let dir = TempDir::new("raw");
+    let vol_path = volume_file(&dir, "ball.vol", UVec3::new(30, 26, 22), VolLayout::Linear);
+    // The .vol's samples are z fastest: the same bytes as a z-fast raw file.
+    let raw_path = dir.path("ball.raw");
+    std::fs::write(&raw_path, &std::fs::read(&vol_path).unwrap()[26..]).unwrap();
+    let mut raw = raycaster::format::RawOptions::new(
+        UVec3::new(30, 26, 22),
+        SampleType::U8,
+        raycaster::format::Endian::Little,
+    );
+    raw.order = raycaster::volume::AxisOrder::ZFast;
+    let mut h = harness(
+        StartOptions {
+            file: Some(raw_path.clone()),
+            tf_preset: Some("shapes".into()),
+            raw: Some(raw),
+            ..Default::default()
+        },
+        quick_settings(),
+    );
+    settle(&mut h);
+    let a = app(&h);
+    assert!(a.error().is_none(), "{:?}", a.error());
+    let info = &a.volume().expect("the raw volume").info;
+    assert_eq!(info.path.as_deref(), Some(raw_path.as_path()));
+    assert_eq!(info.value_range, (0.0, 200.0));
+    assert!(distinct_colours(a) > 10);
+    h.get_by_label("raw");
+    h.get_by_label("30 × 26 × 22");
 }
 
 #[test]

@@ -31,6 +31,8 @@ pub struct StartOptions {
     pub tf_preset: Option<String>,
     /// ...or a TF (e.g. read from a JSON file).
     pub tf: Option<TransferFunction>,
+    /// How to read `file` when it is headerless (raw).
+    pub raw: Option<raycaster::format::RawOptions>,
 }
 
 /// The volume on screen.
@@ -107,7 +109,7 @@ impl ViewerApp {
             canvas_aspect: 1.0,
         };
         match &start.file {
-            Some(p) => app.open(p),
+            Some(p) => app.open_with(p, start.raw.clone()),
             None => app.open_demo(),
         }
         app.start = Some(start);
@@ -117,6 +119,11 @@ impl ViewerApp {
     /// Starts loading `path` in the background; the current volume stays on
     /// screen until the new one is ready (and stays if loading fails).
     pub fn open(&mut self, path: &Path) {
+        self.open_with(path, None);
+    }
+
+    /// As [`ViewerApp::open`], reading a headerless file as `raw` describes.
+    pub fn open_with(&mut self, path: &Path, raw: Option<raycaster::format::RawOptions>) {
         let mode = if self.settings.load_in_ram {
             LoadMode::Ram
         } else {
@@ -124,7 +131,7 @@ impl ViewerApp {
         };
         self.path_input = path.display().to_string();
         self.error = None;
-        self.start_loading(Source::File(path.to_path_buf(), mode));
+        self.start_loading(Source::File(path.to_path_buf(), mode, raw));
     }
 
     /// Starts generating the built-in demo volume.

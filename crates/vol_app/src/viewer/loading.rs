@@ -17,10 +17,11 @@ use raycaster::storage::StorageKind;
 pub const VOLUME_EXTENSIONS: &[&str] = &["vol", "nrrd", "nhdr", "nii", "gz", "dcm"];
 
 /// Where a volume comes from.
-#[derive(Debug, Clone, PartialEq, Eq)]
+#[derive(Debug, Clone, PartialEq)]
 pub enum Source {
-    /// A file, memory-mapped or read into RAM.
-    File(PathBuf, LoadMode),
+    /// A file, memory-mapped or read into RAM (with the description of a
+    /// headerless file).
+    File(PathBuf, LoadMode, Option<raycaster::format::RawOptions>),
     /// The built-in demo volume, generated in memory.
     Demo,
 }
@@ -29,7 +30,7 @@ impl Source {
     /// What to call the source in messages.
     pub fn name(&self) -> String {
         match self {
-            Source::File(p, _) => p.display().to_string(),
+            Source::File(p, ..) => p.display().to_string(),
             Source::Demo => "the built-in demo volume".into(),
         }
     }
@@ -261,12 +262,12 @@ fn load(
     progress.set(Phase::Opening, None);
     wake();
     let (volume, name, path, file) = match source {
-        Source::File(path, mode) => {
+        Source::File(path, mode, raw) => {
             // Decoding (gzip, DICOM slices) reports its fraction.
             let (p, w) = (progress.clone(), wake.clone());
             let options = raycaster::format::OpenOptions {
                 mode: *mode,
-                raw: None,
+                raw: raw.clone(),
                 progress: Some(raycaster::format::Progress::new(move |f| {
                     p.set(Phase::Opening, Some(f));
                     w();
@@ -366,7 +367,7 @@ mod tests {
         assert_eq!(loaded.info.storage, StorageKind::Ram);
         assert!(loaded.histogram.counts.iter().sum::<u64>() > 0);
         let job = LoadJob::start(
-            Source::File("/nonexistent/x.vol".into(), LoadMode::Map),
+            Source::File("/nonexistent/x.vol".into(), LoadMode::Map, None),
             || {},
         );
         let err = wait(&job).unwrap_err();

@@ -62,7 +62,7 @@ impl ViewerApp {
         if let Some(job) = &self.loading {
             let (phase, fraction) = job.progress();
             let name = match job.source() {
-                Source::File(p, _) => super::app::short_name(p),
+                Source::File(p, ..) => super::app::short_name(p),
                 Source::Demo => "the demo volume".into(),
             };
             ui.horizontal(|ui| {
