@@ -8,6 +8,8 @@
 
 mod common;
 
+use common::TempDir;
+
 use std::path::{Path, PathBuf};
 
 use glam::{UVec3, Vec3};
@@ -17,28 +19,6 @@ use raycaster::prelude::*;
 const SERIES: &str = "/work/shared/data/dicom_mri_series";
 
 // ------------------------------------------------------------------ helpers
-
-/// A temporary directory, removed on drop.
-struct TempDir(PathBuf);
-
-impl TempDir {
-    fn new(tag: &str) -> Self {
-        let p = common::TempFile::new(tag);
-        let path = p.path().to_path_buf();
-        std::fs::create_dir_all(&path).unwrap();
-        TempDir(path)
-    }
-
-    fn path(&self) -> &Path {
-        &self.0
-    }
-}
-
-impl Drop for TempDir {
-    fn drop(&mut self) {
-        let _ = std::fs::remove_dir_all(&self.0);
-    }
-}
 
 /// The series' files sorted by name, or `None` (test skipped) when the data
 /// is not there.

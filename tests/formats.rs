@@ -6,6 +6,8 @@
 //! malformed or random files give one-line errors that name the file, never
 //! a panic.
 
+mod common;
+
 use std::panic::{AssertUnwindSafe, catch_unwind};
 use std::path::{Path, PathBuf};
 
@@ -20,40 +22,11 @@ use raycaster::format::{
 use raycaster::prelude::*;
 use raycaster::volume::AxisOrder;
 
+use common::TempDir;
+
 const DATA: &str = "/work/shared/data";
 
 // ------------------------------------------------------------------ helpers
-
-/// A directory under the system's temporary directory, named after the
-/// process and a tag, removed on drop.
-struct TempDir(PathBuf);
-
-impl TempDir {
-    fn new(tag: &str) -> Self {
-        let p =
-            std::env::temp_dir().join(format!("raycaster-formats-{}-{tag}", std::process::id()));
-        let _ = std::fs::remove_dir_all(&p);
-        std::fs::create_dir_all(&p).expect("create temp dir");
-        TempDir(p)
-    }
-
-    fn join(&self, name: &str) -> PathBuf {
-        self.0.join(name)
-    }
-
-    /// Writes `bytes` to `name` in the directory and returns the path.
-    fn file(&self, name: &str, bytes: &[u8]) -> PathBuf {
-        let p = self.join(name);
-        std::fs::write(&p, bytes).expect("write temp file");
-        p
-    }
-}
-
-impl Drop for TempDir {
-    fn drop(&mut self) {
-        let _ = std::fs::remove_dir_all(&self.0);
-    }
-}
 
 fn open(path: &Path) -> Opened {
     fmt::open_file(path, &OpenOptions::default())

@@ -201,6 +201,42 @@ pub fn compare_images(a: &[u8], b: &[u8], threshold: u8) -> ImageDiff {
 /// A unique path in the system's temporary directory, removed on drop.
 pub struct TempFile(pub PathBuf);
 
+/// A unique directory in the system's temporary directory (named as
+/// [`TempFile`]), removed with its content on drop.
+pub struct TempDir(pub PathBuf);
+
+impl TempDir {
+    pub fn new(tag: &str) -> Self {
+        // The TempFile only names the directory; forget it so its drop does
+        // not try to remove the path as a file.
+        let name = std::mem::ManuallyDrop::new(TempFile::new(tag));
+        std::fs::create_dir_all(name.path()).expect("create temp dir");
+        TempDir(name.path().to_path_buf())
+    }
+
+    pub fn path(&self) -> &Path {
+        &self.0
+    }
+
+    /// The path of `name` inside the directory.
+    pub fn join(&self, name: &str) -> PathBuf {
+        self.0.join(name)
+    }
+
+    /// Writes `bytes` to `name` in the directory and returns the path.
+    pub fn file(&self, name: &str, bytes: &[u8]) -> PathBuf {
+        let p = self.join(name);
+        std::fs::write(&p, bytes).expect("write temp file");
+        p
+    }
+}
+
+impl Drop for TempDir {
+    fn drop(&mut self) {
+        let _ = std::fs::remove_dir_all(&self.0);
+    }
+}
+
 impl TempFile {
     pub fn new(tag: &str) -> Self {
         static COUNTER: AtomicU64 = AtomicU64::new(0);

@@ -3,6 +3,7 @@
 
 use raycaster::format::save::{OutputFormat, SaveOptions, save};
 use raycaster::format::vol::VolLayout;
+use raycaster::format::{Endian, RawOptions};
 use raycaster::storage::LoadMode;
 
 use crate::anyhow_like::Error;
@@ -46,7 +47,7 @@ pub fn run(args: &ConvertArgs) -> Result<(), Error> {
             d.x,
             d.y,
             d.z,
-            raw_type(opened.volume.sample_type())
+            RawOptions::type_name(opened.volume.sample_type(), Endian::Little)
         ),
     };
     eprintln!(
@@ -63,16 +64,5 @@ fn layout_name(layout: VolLayout) -> String {
     match layout {
         VolLayout::Linear => "linear".into(),
         VolLayout::Bricked { side } => format!("bricked B = {side}"),
-    }
-}
-
-fn raw_type(t: raycaster::sample::SampleType) -> &'static str {
-    use raycaster::sample::SampleType::*;
-    match t {
-        U8 => "u8",
-        I8 => "i8",
-        U16 => "u16le",
-        I16 => "i16le",
-        F32 => "f32le",
     }
 }

@@ -2,6 +2,7 @@
 
 use raycaster::prelude::*;
 use raycaster::storage::StorageKind;
+use vol_app::units::{bytes, value};
 
 use crate::anyhow_like::Error;
 use crate::cli::InfoArgs;
@@ -67,17 +68,17 @@ pub fn run(args: &InfoArgs) -> Result<(), Error> {
     if let Some(r) = info.rescale {
         println!("rescale      value = {r} (held as {in_memory})");
     }
-    println!("values       {} .. {}", fmt_value(lo), fmt_value(hi));
+    println!("values       {} .. {}", value(lo), value(hi));
     println!(
         "orientation  {}",
         info.orientation
             .as_deref()
             .unwrap_or("none stored (not applied either way)")
     );
-    println!("on disk      {}", bytes(info.file_bytes));
+    println!("on disk      {}", with_count(info.file_bytes));
     println!(
         "in memory    {} ({storage_name}, {layout})",
-        bytes(memory_bytes)
+        with_count(memory_bytes)
     );
     for note in &info.notes {
         println!("note         {note}");
@@ -85,21 +86,11 @@ pub fn run(args: &InfoArgs) -> Result<(), Error> {
     Ok(())
 }
 
-fn fmt_value(v: f32) -> String {
-    if v.fract() == 0.0 && v.abs() < 1e9 {
-        format!("{v:.0}")
+/// `1.2 MiB (1234567 bytes)`.
+fn with_count(n: u64) -> String {
+    if n < 1024 {
+        bytes(n)
     } else {
-        format!("{v}")
+        format!("{} ({n} bytes)", bytes(n))
     }
-}
-
-/// `1234567` → `1.2 MB (1234567 bytes)`.
-fn bytes(n: u64) -> String {
-    let (v, unit) = match n {
-        n if n >= 1 << 30 => (n as f64 / (1u64 << 30) as f64, "GiB"),
-        n if n >= 1 << 20 => (n as f64 / (1u64 << 20) as f64, "MiB"),
-        n if n >= 1 << 10 => (n as f64 / (1u64 << 10) as f64, "KiB"),
-        _ => return format!("{n} bytes"),
-    };
-    format!("{v:.1} {unit} ({n} bytes)")
 }

@@ -1,8 +1,11 @@
 //! End-to-end tests of the `vol_app` binary: arguments, errors, outputs.
 
+mod common;
+
 use std::path::PathBuf;
 use std::process::{Command, Output};
 
+use common::TempDir;
 use glam::{UVec3, Vec3};
 use raycaster::format::vol::{self, VolLayout};
 use raycaster::volume::{Grid, LinearVolume};
@@ -11,26 +14,6 @@ fn bin() -> Command {
     let mut c = Command::new(env!("CARGO_BIN_EXE_vol_app"));
     c.env("RUST_BACKTRACE", "1");
     c
-}
-
-struct TempDir(PathBuf);
-
-impl TempDir {
-    fn new(tag: &str) -> Self {
-        let p = std::env::temp_dir().join(format!("vol_app_cli_{tag}_{}", std::process::id()));
-        let _ = std::fs::remove_dir_all(&p);
-        std::fs::create_dir_all(&p).unwrap();
-        TempDir(p)
-    }
-    fn path(&self, name: &str) -> PathBuf {
-        self.0.join(name)
-    }
-}
-
-impl Drop for TempDir {
-    fn drop(&mut self) {
-        let _ = std::fs::remove_dir_all(&self.0);
-    }
 }
 
 /// A 24³ ball of value 200 in a linear `.vol` file.

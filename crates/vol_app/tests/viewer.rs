@@ -2,10 +2,13 @@
 //! render thread) driven headlessly through `egui_kittest`, by the labels a
 //! user sees.
 
+mod common;
+
 use std::path::{Path, PathBuf};
 use std::sync::Arc;
 use std::time::{Duration, Instant};
 
+use common::TempDir;
 use egui::{Event, Modifiers, PointerButton};
 use egui_kittest::Harness;
 use egui_kittest::kittest::Queryable;
@@ -21,27 +24,6 @@ use vol_app::viewer::{Settings, StartOptions, ViewerApp};
 const TIMEOUT: Duration = Duration::from_secs(25);
 
 type H = Harness<'static, Option<ViewerApp>>;
-
-/// A temporary directory removed at the end of the test.
-struct TempDir(PathBuf);
-
-impl TempDir {
-    fn new(tag: &str) -> Self {
-        let p = std::env::temp_dir().join(format!("vol_app_viewer_{tag}_{}", std::process::id()));
-        let _ = std::fs::remove_dir_all(&p);
-        std::fs::create_dir_all(&p).unwrap();
-        TempDir(p)
-    }
-    fn path(&self, name: &str) -> PathBuf {
-        self.0.join(name)
-    }
-}
-
-impl Drop for TempDir {
-    fn drop(&mut self) {
-        let _ = std::fs::remove_dir_all(&self.0);
-    }
-}
 
 /// A `dims` volume holding a ball of value 100 (inside the `shapes` TF's
 /// bands) and a smaller one of 200, written as a `.vol` file.

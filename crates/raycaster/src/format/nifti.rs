@@ -268,17 +268,15 @@ pub fn open_with(
         (image_file_for(path)?, h.vox_offset.max(0.0) as u64)
     };
     let volume = if gz {
-        // Skip to vox_offset, then decode exactly the first volume.
-        let skip = offset.saturating_sub(HEADER_LEN as u64);
-        let mut s: Box<dyn Read> = if h.single_file {
-            stream
+        // Skip to vox_offset (the single file's stream is past the header
+        // already), then decode exactly the first volume.
+        let (mut s, skip): (Box<dyn Read>, u64) = if h.single_file {
+            (stream, offset.saturating_sub(HEADER_LEN as u64))
         } else {
             let f = std::fs::File::open(&data_path).map_err(|e| Error::io(&data_path, e))?;
-            Box::new(flate2::read::MultiGzDecoder::new(std::io::BufReader::new(
-                f,
-            )))
+            let gz = flate2::read::MultiGzDecoder::new(std::io::BufReader::new(f));
+            (Box::new(gz), offset)
         };
-        let skip = if h.single_file { skip } else { offset };
         std::io::copy(&mut s.by_ref().take(skip), &mut std::io::sink())
             .map_err(|e| invalid(path, format!("gzip data is corrupt or truncated ({e})")))?;
         let stream = samples::Stream {

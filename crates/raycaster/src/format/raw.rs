@@ -43,6 +43,17 @@ impl RawOptions {
         }
     }
 
+    /// The `--raw-type` name of `sample` in `endian` order (`u16be`, `f32le`,
+    /// `u8`, ...): what [`RawOptions::parse_type`] reads back.
+    pub fn type_name(sample: SampleType, endian: Endian) -> String {
+        let suffix = match (sample.size(), endian) {
+            (1, _) => "",
+            (_, Endian::Little) => "le",
+            (_, Endian::Big) => "be",
+        };
+        format!("{}{suffix}", sample.name())
+    }
+
     /// Parses a `--raw-type` value: `u8`, `i8`, `u16le`, `u16be`, `i16le`,
     /// `i16be`, `f32le`, `f32be` (and `u16`/`i16`/`f32` for little-endian).
     pub fn parse_type(text: &str) -> Option<(SampleType, Endian)> {

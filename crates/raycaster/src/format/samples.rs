@@ -287,7 +287,7 @@ pub fn from_bytes(
 }
 
 /// Builds a volume in RAM from typed samples in `order`, applying `rescale`.
-pub fn from_samples<S: Sample + Decode>(
+pub fn from_samples<S: Sample>(
     grid: Grid,
     samples: Vec<S>,
     order: AxisOrder,
@@ -520,21 +520,21 @@ pub fn write_samples(
         V::Sample: Decode,
     {
         let d = v.grid().dims;
-        // Outer, middle and row axes for the order.
-        let (outer, middle, row) = match order {
-            AxisOrder::XFast => (d.z, d.y, d.x),
-            AxisOrder::ZFast => (d.x, d.y, d.z),
+        // Rows run along the fastest axis: x for x-fast, z for z-fast; `a`
+        // counts the slowest axis and `b` counts y.
+        let (row_axis, n_outer, row_start): (UVec3, u32, fn(u32, u32) -> UVec3) = match order {
+            AxisOrder::XFast => (UVec3::X, d.z, |a, b| UVec3::new(0, b, a)),
+            AxisOrder::ZFast => (UVec3::Z, d.x, |a, b| UVec3::new(a, b, 0)),
         };
-        let mut buf = Vec::with_capacity(row as usize * V::Sample::TYPE.size());
-        for a in 0..outer {
-            for b in 0..middle {
+        let n_middle = d.y;
+        let row_len = (d * row_axis).max_element();
+        let mut buf = Vec::with_capacity(row_len as usize * V::Sample::TYPE.size());
+        for a in 0..n_outer {
+            for b in 0..n_middle {
                 buf.clear();
-                for c in 0..row {
-                    let p = match order {
-                        AxisOrder::XFast => UVec3::new(c, b, a),
-                        AxisOrder::ZFast => UVec3::new(a, b, c),
-                    };
-                    v.voxel(p).encode(endian, &mut buf);
+                let start = row_start(a, b);
+                for c in 0..row_len {
+                    v.voxel(start + row_axis * c).encode(endian, &mut buf);
                 }
                 w.write_all(&buf)?;
             }

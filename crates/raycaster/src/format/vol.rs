@@ -205,18 +205,24 @@ pub enum VolVolume {
 
 /// Opens a `.vol` file, mapped or read into RAM.
 pub fn open(path: &Path, mode: LoadMode) -> Result<VolVolume> {
+    open_read_header(path, mode).map(|(volume, _)| volume)
+}
+
+/// [`open`], also returning the header it read.
+fn open_read_header(path: &Path, mode: LoadMode) -> Result<(VolVolume, VolHeader)> {
     let header = read_header(path)?;
     let count = header.sample_count().map_err(|k| Error::format(path, k))?;
     let count = usize::try_from(count).map_err(|_| {
         Error::InvalidArgument(format!("{}: too large for this machine", path.display()))
     })?;
     let storage = Storage::<u8>::open(path, HEADER_LEN as u64, count, mode)?;
-    Ok(match header.layout {
+    let volume = match header.layout {
         VolLayout::Linear => VolVolume::Linear(LinearVolume::new(header.grid(), storage)?),
         VolLayout::Bricked { side } => {
             VolVolume::Bricked(BrickedVolume::new(header.grid(), side as u32, storage)?)
         }
-    })
+    };
+    Ok((volume, header))
 }
 
 /// True when `head` is a valid header whose implied length is `file_len`.
@@ -226,8 +232,7 @@ pub fn header_matches(head: &[u8], file_len: u64) -> bool {
 
 /// Opens a `.vol` file (as [`open`]) with a description of what it stores.
 pub fn open_with_info(path: &Path, mode: LoadMode) -> Result<super::Opened> {
-    let volume = open(path, mode)?;
-    let header = read_header(path)?;
+    let (volume, header) = open_read_header(path, mode)?;
     let layout = super::SampleLayout {
         dims: header.dims,
         spacing: header.spacing,

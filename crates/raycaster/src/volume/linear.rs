@@ -157,19 +157,20 @@ impl<S: Sample> Volume for LinearVolume<S> {
         let hi = hi.min(self.grid.dims - UVec3::ONE);
         let data = self.data.as_slice();
         let mut acc = (S::HIGHEST, S::LOWEST);
-        // Runs along the fastest axis are contiguous.
-        let (outer, inner, run) = match self.order {
-            AxisOrder::ZFast => ((lo.x, hi.x), (lo.y, hi.y), hi.z - lo.z),
-            AxisOrder::XFast => ((lo.z, hi.z), (lo.y, hi.y), hi.x - lo.x),
+        if lo.cmpgt(hi).any() {
+            return acc; // an empty box
+        }
+        // Rows along the fastest axis are contiguous; walk the other two.
+        let (outer, fast) = match self.order {
+            AxisOrder::ZFast => (0, 2),
+            AxisOrder::XFast => (2, 0),
         };
-        for a in outer.0..=outer.1 {
-            for b in inner.0..=inner.1 {
-                let start = match self.order {
-                    AxisOrder::ZFast => UVec3::new(a, b, lo.z),
-                    AxisOrder::XFast => UVec3::new(lo.x, b, a),
-                };
-                let row = self.index(start);
-                let (x, y) = fold_range(data[row..=row + run as usize].iter().copied());
+        let base = self.index(lo);
+        let run = (hi[fast] - lo[fast]) as usize;
+        for a in 0..=(hi[outer] - lo[outer]) as usize {
+            for b in 0..=(hi.y - lo.y) as usize {
+                let row = base + a * self.step[outer] + b * self.step[1];
+                let (x, y) = fold_range(data[row..=row + run].iter().copied());
                 acc = (acc.0.min_of(x), acc.1.max_of(y));
             }
         }

@@ -161,7 +161,7 @@ impl ViewerApp {
                     f.threads,
                     f.frame.width,
                     f.frame.height,
-                    super::tf_editor::format_value(f.step),
+                    crate::units::value(f.step),
                     if f.preview { " (preview)" } else { "" },
                 ));
             } else {

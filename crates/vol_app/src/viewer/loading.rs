@@ -51,8 +51,6 @@ pub struct VolumeInfo {
     pub sample_type: SampleType,
     /// Smallest and largest voxel value.
     pub value_range: (f32, f32),
-    /// File size in bytes.
-    pub file_size: Option<u64>,
     /// Memory layout.
     pub layout: Layout,
     /// RAM or memory-mapped.
@@ -60,8 +58,15 @@ pub struct VolumeInfo {
     /// Time from the start of loading to a ready scene.
     pub load_time: Duration,
     /// What the file stores (format, stored type, rescale, orientation,
-    /// notes), when there is a file.
+    /// notes, size on disk), when there is a file.
     pub file: Option<raycaster::format::VolumeInfo>,
+}
+
+impl VolumeInfo {
+    /// Bytes on disk, when the volume came from a file.
+    pub fn file_size(&self) -> Option<u64> {
+        self.file.as_ref().map(|f| f.file_bytes)
+    }
 }
 
 /// Voxel counts per value bin over the volume's value range.
@@ -288,7 +293,6 @@ fn load(
             None,
         ),
     };
-    let file_size = file.as_ref().map(|f| f.file_bytes);
     progress.set(Phase::Accelerating, None);
     wake();
     let (sample_type, layout, storage) =
@@ -314,7 +318,6 @@ fn load(
             spacing: grid.spacing,
             sample_type,
             value_range,
-            file_size,
             layout,
             storage,
             load_time: start.elapsed(),

@@ -9,7 +9,7 @@ use super::app::ViewerApp;
 use super::dialogs::Purpose;
 use super::loading::{Source, VolumeInfo};
 use super::state::{Mode, RendererChoice, ResolutionChoice, StepChoice, max_threads};
-use super::tf_editor::format_value;
+use crate::units::{bytes, value as format_value};
 
 impl ViewerApp {
     /// All sections of the left panel.
@@ -261,7 +261,7 @@ fn info_grid(ui: &mut Ui, info: &VolumeInfo) {
         ),
         (
             "File size",
-            info.file_size.map_or("in memory".into(), bytes),
+            info.file_size().map_or("in memory".into(), bytes),
         ),
         ("Layout", info.layout.to_string()),
         (
@@ -322,22 +322,6 @@ fn ellipsize(text: &str, max: usize) -> String {
     s
 }
 
-/// A byte count in binary units.
-fn bytes(n: u64) -> String {
-    const UNITS: [&str; 5] = ["B", "KiB", "MiB", "GiB", "TiB"];
-    let mut v = n as f64;
-    let mut u = 0;
-    while v >= 1024.0 && u + 1 < UNITS.len() {
-        v /= 1024.0;
-        u += 1;
-    }
-    if u == 0 {
-        format!("{n} B")
-    } else {
-        format!("{v:.1} {}", UNITS[u])
-    }
-}
-
 #[cfg(test)]
 mod tests {
     #[test]
@@ -346,12 +330,5 @@ mod tests {
         let s = super::ellipsize("a_very_long_volume_name.vol", 11);
         assert_eq!(s, "a_ver…e.vol");
         assert_eq!(s.chars().count(), 11);
-    }
-
-    #[test]
-    fn bytes_use_binary_units() {
-        assert_eq!(super::bytes(26), "26 B");
-        assert_eq!(super::bytes(491_546), "480.0 KiB");
-        assert_eq!(super::bytes(3 << 30), "3.0 GiB");
     }
 }

@@ -334,28 +334,17 @@ fn paint(
     painter.text(
         Pos2::new(rect.left() + 4.0, top),
         egui::Align2::LEFT_TOP,
-        format_value(axes.lo),
+        crate::units::value(axes.lo),
         font.clone(),
         weak,
     );
     painter.text(
         Pos2::new(rect.right() - 4.0, top),
         egui::Align2::RIGHT_TOP,
-        format_value(axes.hi),
+        crate::units::value(axes.hi),
         font,
         weak,
     );
-}
-
-/// A value with as many decimals as its size needs.
-pub fn format_value(v: f32) -> String {
-    if v == v.round() && v.abs() < 1e7 {
-        format!("{v:.0}")
-    } else if v.abs() >= 100.0 {
-        format!("{v:.1}")
-    } else {
-        format!("{v:.3}")
-    }
 }
 
 #[cfg(test)]
@@ -409,7 +398,5 @@ mod tests {
             axes.y(0.02) < axes.y(0.0) - 10.0,
             "faint opacities are visible"
         );
-        assert_eq!(format_value(85.0), "85");
-        assert_eq!(format_value(0.25), "0.250");
     }
 }
