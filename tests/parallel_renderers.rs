@@ -19,6 +19,7 @@ mod common;
 
 use std::sync::atomic::AtomicBool;
 
+use common::scenes::tf_points;
 use common::{TestLayout, compare_images, make_pair, phantom};
 use glam::Vec3;
 use raycaster::prelude::*;
@@ -76,29 +77,22 @@ fn cameras(scene: &Scene) -> Vec<(&'static str, Camera)> {
 /// A linear TF that lets rays go deep (so bricks far from the eye matter)
 /// and a step TF that stops them early.
 fn tfs() -> Vec<(&'static str, TransferFunction)> {
-    let p = |value: f32, color: [f32; 3], opacity: f32| TfPoint {
-        value,
-        color,
-        opacity,
-    };
-    let soft = TransferFunction::new(
+    let soft = tf_points(
         Interpolation::Linear,
-        vec![
-            p(20.0, [0.2, 0.4, 1.0], 0.0),
-            p(120.0, [1.0, 0.8, 0.3], 0.08),
-            p(250.0, [1.0, 1.0, 1.0], 0.5),
+        &[
+            (20.0, [0.2, 0.4, 1.0], 0.0),
+            (120.0, [1.0, 0.8, 0.3], 0.08),
+            (250.0, [1.0, 1.0, 1.0], 0.5),
         ],
-    )
-    .expect("TF");
-    let hard = TransferFunction::new(
+    );
+    let hard = tf_points(
         Interpolation::Step,
-        vec![
-            p(100.0, [0.9, 0.3, 0.2], 0.4),
-            p(150.0, [0.2, 0.9, 0.3], 1.0),
-            p(230.0, [1.0, 1.0, 1.0], 0.0),
+        &[
+            (100.0, [0.9, 0.3, 0.2], 0.4),
+            (150.0, [0.2, 0.9, 0.3], 1.0),
+            (230.0, [1.0, 1.0, 1.0], 0.0),
         ],
-    )
-    .expect("TF");
+    );
     vec![("soft", soft), ("hard", hard)]
 }
 
@@ -352,26 +346,16 @@ fn cancelled_frames_are_not_delivered() {
     let flag = AtomicBool::new(true);
     for kind in RendererKind::ALL {
         let mut r = AnyRenderer::new(kind, 2).expect("renderer");
-        let got = r
-            .render_cancellable(
-                &pair.scene,
-                &camera,
-                &tf,
-                &RenderOptions::default(),
-                Cancel::flag(&flag),
-            )
-            .expect("render");
-        assert!(got.is_none(), "{kind:?} delivered a cancelled frame");
-        let got = r
-            .render_cancellable(
-                &pair.scene,
-                &camera,
-                &tf,
-                &RenderOptions::default(),
-                Cancel::never(),
-            )
-            .expect("render");
-        assert!(got.is_some(), "{kind:?} delivered no frame");
+        // The same renderer, first cancelled, then not.
+        for (cancel, delivers, problem) in [
+            (Cancel::flag(&flag), false, "delivered a cancelled frame"),
+            (Cancel::never(), true, "delivered no frame"),
+        ] {
+            let got = r
+                .render_cancellable(&pair.scene, &camera, &tf, &RenderOptions::default(), cancel)
+                .expect("render");
+            assert_eq!(got.is_some(), delivers, "{kind:?} {problem}");
+        }
     }
 }
 

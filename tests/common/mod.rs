@@ -1,10 +1,20 @@
 //! Shared helpers of the end-to-end tests: the f64 reference renderer, test
 //! volumes built identically for the library and the reference, conversions,
-//! image comparison and temporary files.
+//! image comparison and temporary files; in submodules, the small scenes of
+//! the renderer property tests (`scenes`), single rays (`rays`), hand-made
+//! file bytes (`file_bytes`) and the volumes of the file format tests
+//! (`volumes`).
+//!
+//! Every test binary compiles all of it and uses a part: hence the
+//! `dead_code` allowance.
 
 #![allow(dead_code)]
 
+pub mod file_bytes;
+pub mod rays;
 pub mod reference;
+pub mod scenes;
+pub mod volumes;
 
 use std::path::{Path, PathBuf};
 use std::sync::atomic::{AtomicU64, Ordering};
@@ -98,6 +108,15 @@ pub fn phantom(dims: [u32; 3]) -> impl Fn(u32, u32, u32) -> u8 + Copy {
             .max(12.0 * u[1]);
         v.round().clamp(0.0, 255.0) as u8
     }
+}
+
+/// A grid of `dims` and `spacing`, and the [`phantom`] on it by voxel.
+pub fn phantom_on_grid(dims: [u32; 3], spacing: Vec3) -> (Grid, impl Fn(UVec3) -> u8 + Copy) {
+    let f = phantom(dims);
+    (
+        Grid::new(UVec3::from_array(dims), spacing),
+        move |v: UVec3| f(v.x, v.y, v.z),
+    )
 }
 
 pub fn v3f(v: V3) -> Vec3 {
@@ -252,6 +271,16 @@ impl TempFile {
 
     pub fn path(&self) -> &Path {
         &self.0
+    }
+
+    /// The file's name (the last component of its path): what error
+    /// messages about the file must contain.
+    pub fn name(&self) -> String {
+        self.0
+            .file_name()
+            .expect("a file name")
+            .to_string_lossy()
+            .into_owned()
     }
 }
 
