@@ -47,8 +47,7 @@ fn formats(c: &mut Criterion) {
     // A synthetic 256³ i16 volume as raw, native and big-endian.
     let dims = UVec3::splat(256);
     let grid = Grid::new(dims, glam::Vec3::ONE);
-    let volume: AnyVolume =
-        LinearVolume::from_fn(grid, |p| ((p.x * 7 + p.y * 3 + p.z) % 4000) as i16 - 1000).into();
+    let volume = AnyVolume::from_fn(grid, |p| ((p.x * 7 + p.y * 3 + p.z) % 4000) as i16 - 1000);
     let dir = std::env::temp_dir().join(format!("raycaster-bench-{}", std::process::id()));
     std::fs::create_dir_all(&dir).expect("temp dir");
     for (name, endian) in [

@@ -18,15 +18,10 @@ fn parallel(c: &mut Criterion) {
     let n = 192;
     let grid = Grid::new(UVec3::splat(n), Vec3::ONE);
     let volumes: [(&str, AnyVolume); 2] = [
-        (
-            "linear",
-            LinearVolume::from_fn(grid, shapes(n, 40, 2)).into(),
-        ),
+        ("linear", AnyVolume::from_fn(grid, shapes(n, 40, 2))),
         (
             "block16",
-            BrickedVolume::from_fn(grid, 16, shapes(n, 40, 2))
-                .expect("bricked volume")
-                .into(),
+            AnyVolume::bricked_from_fn(grid, 16, shapes(n, 40, 2)).expect("bricked volume"),
         ),
     ];
     let tf = TransferFunction::preset("shapes", SampleType::U8).expect("preset");

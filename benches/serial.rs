@@ -12,7 +12,7 @@ use raycaster::prelude::*;
 mod common;
 
 fn serial(c: &mut Criterion) {
-    let scene = Scene::new(LinearVolume::from_fn(
+    let scene = Scene::new(AnyVolume::from_fn(
         Grid::new(UVec3::splat(192), Vec3::ONE),
         common::shapes(192, 40, 2),
     ));

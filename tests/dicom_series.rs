@@ -41,9 +41,9 @@ fn open(path: &Path) -> raycaster::Result<Opened> {
     open_file(path, &OpenOptions::default())
 }
 
-/// Every sample of a linear volume as f32, in storage (x-fast) order.
+/// Every sample of a volume as f32, x fastest (a series' storage order).
 fn values(v: &AnyVolume) -> Vec<f32> {
-    raycaster::dispatch_volume!(v, v => v.samples().iter().map(|s| s.to_f32()).collect())
+    common::volumes::all_f32(v)
 }
 
 /// Where the value of element (`group`, `element`) starts in an explicit VR

@@ -9,7 +9,7 @@ use std::path::Path;
 
 use common::TempDir;
 use common::file_bytes::{NiiHeader, header_end, nrrd_header};
-use common::volumes::{SYN_DIMS, SYN_SPACING, as_linear_u8, le_bytes, synthetic};
+use common::volumes::{SYN_DIMS, SYN_SPACING, le_bytes, synthetic};
 use raycaster::format::davis::DavisHeader;
 use raycaster::format::nrrd::{self, Encoding};
 use raycaster::format::samples;
@@ -85,10 +85,10 @@ fn fuzz_seeds(dir: &TempDir) -> Vec<(&'static str, Vec<u8>, Option<RawOptions>, 
         .unwrap()
     });
     let vol_linear = written("seed.vol", &|p| {
-        vol::write(p, as_linear_u8(&u8v), VolLayout::Linear).unwrap()
+        vol::write(p, &u8v, VolLayout::Linear).unwrap()
     });
     let vol_bricked = written("seed-b.vol", &|p| {
-        vol::write(p, as_linear_u8(&u8v), VolLayout::Bricked { side: 4 }).unwrap()
+        vol::write(p, &u8v, VolLayout::Bricked { side: 4 }).unwrap()
     });
     let mut davis = DavisHeader {
         dims: SYN_DIMS,

@@ -21,15 +21,11 @@ fn small_range(ty: SampleType, dims: UVec3, spacing: Vec3) -> AnyVolume {
     let grid = Grid::new(dims, spacing);
     let n = |p: UVec3| ((p.z * dims.y + p.y) * dims.x + p.x) as i32;
     match ty {
-        SampleType::U8 => LinearVolume::from_fn(grid, |p| (n(p) * 7 % 256) as u8).into(),
-        SampleType::I8 => LinearVolume::from_fn(grid, |p| (n(p) * 7 % 256 - 128) as i8).into(),
-        SampleType::U16 => LinearVolume::from_fn(grid, |p| (n(p) * 211 % 4000) as u16).into(),
-        SampleType::I16 => {
-            LinearVolume::from_fn(grid, |p| (n(p) * 211 % 4000 - 2000) as i16).into()
-        }
-        SampleType::F32 => {
-            LinearVolume::from_fn(grid, |p| (n(p) * 211 % 4000 - 2000) as f32 * 0.25).into()
-        }
+        SampleType::U8 => AnyVolume::from_fn(grid, |p| (n(p) * 7 % 256) as u8),
+        SampleType::I8 => AnyVolume::from_fn(grid, |p| (n(p) * 7 % 256 - 128) as i8),
+        SampleType::U16 => AnyVolume::from_fn(grid, |p| (n(p) * 211 % 4000) as u16),
+        SampleType::I16 => AnyVolume::from_fn(grid, |p| (n(p) * 211 % 4000 - 2000) as i16),
+        SampleType::F32 => AnyVolume::from_fn(grid, |p| (n(p) * 211 % 4000 - 2000) as f32 * 0.25),
     }
 }
 

@@ -11,7 +11,7 @@ use std::path::{Path, PathBuf};
 use common::TempDir;
 use common::file_bytes::header_end;
 use common::volumes::{
-    all_f32, as_linear_u8, assert_same_volume, le_bytes, open, open_raw, raw_options, voxel_f32,
+    all_f32, assert_same_volume, le_bytes, open, open_raw, raw_options, voxel_f32,
 };
 use glam::{UVec3, Vec3};
 use raycaster::format::vol::{self, VolLayout};
@@ -441,7 +441,7 @@ fn flair_written_as_vol_renders_identically() {
         ),
     ] {
         let p = dir.join(name);
-        vol::write(&p, as_linear_u8(original.volume()), layout).expect("write .vol");
+        vol::write(&p, original.volume(), layout).expect("write .vol");
         let opened = open(&p);
         assert_eq!(opened.info.format, FileFormat::Vol, "{name}");
         assert_eq!(opened.info.encoding, encoding, "{name}");

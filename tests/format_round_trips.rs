@@ -8,8 +8,8 @@ mod common;
 
 use common::TempDir;
 use common::volumes::{
-    ALL_TYPES, SYN_DIMS, SYN_SPACING, all_f32, as_linear_u8, check_opened, has_note, le_bytes,
-    min_max, open, open_raw, raw_options, synthetic,
+    ALL_TYPES, SYN_DIMS, SYN_SPACING, all_f32, check_opened, has_note, le_bytes, min_max, open,
+    open_raw, raw_options, synthetic,
 };
 use raycaster::format::davis::DavisHeader;
 use raycaster::format::nrrd::{self, Encoding};
@@ -114,7 +114,7 @@ fn u8_volumes_round_trip_through_vol_and_uc_davis() {
         ("bricked.vol", VolLayout::Bricked { side: 3 }),
     ] {
         let p = dir.join(name);
-        vol::write(&p, as_linear_u8(&want), layout).unwrap();
+        vol::write(&p, &want, layout).unwrap();
         assert_eq!(fmt::detect(&p).unwrap(), FileFormat::Vol, "{name}");
         check_opened(name, &open(&p), &want, FileFormat::Vol, SampleType::U8);
     }

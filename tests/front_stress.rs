@@ -27,7 +27,6 @@ use std::time::{Duration, Instant};
 use common::{TestLayout, make_pair, phantom};
 use glam::Vec3;
 use raycaster::prelude::*;
-use raycaster::scene::VolumeSource;
 
 /// How long any single wait may take before it counts as a deadlock.
 const WAIT: Duration = Duration::from_secs(20);
@@ -56,9 +55,9 @@ impl Renderer for Flaky {
     fn threads(&self) -> usize {
         1
     }
-    fn render_cancellable<V: VolumeSource>(
+    fn render_cancellable(
         &mut self,
-        scene: &Scene<V>,
+        scene: &Scene,
         camera: &Camera,
         tf: &TransferFunction,
         options: &RenderOptions,

@@ -479,16 +479,12 @@ fn typed_volumes<S: Sample>(
     dims: [u32; 3],
     map: fn(f32) -> f32,
     cast: fn(f32) -> S,
-) -> [AnyVolume; 2]
-where
-    AnyVolume: From<LinearVolume<S>>,
-{
+) -> [AnyVolume; 2] {
     use raycaster::storage::Storage;
-    use raycaster::volume::AxisOrder;
     let f = phantom(dims);
     let value = |x, y, z| cast(map(f(x, y, z) as f32));
     let grid = Grid::new(glam::UVec3::from_array(dims), Vec3::new(1.0, 0.8, 1.3));
-    let z_fast = LinearVolume::from_fn(grid, |v| value(v.x, v.y, v.z));
+    let z_fast = AnyVolume::from_fn(grid, |v| value(v.x, v.y, v.z));
     let mut samples = Vec::new();
     for z in 0..dims[2] {
         for y in 0..dims[1] {
@@ -497,9 +493,9 @@ where
             }
         }
     }
-    let x_fast = LinearVolume::with_order(grid, Storage::from_vec(samples), AxisOrder::XFast)
+    let x_fast = AnyVolume::linear(grid, Storage::from_vec(samples), AxisOrder::XFast)
         .expect("x-fast volume");
-    [z_fast.into(), x_fast.into()]
+    [z_fast, x_fast]
 }
 
 /// Every sample type, in both linear orders, through every renderer and

@@ -226,20 +226,20 @@ fn avg_and_ramp_follow_the_sample_type() {
     let grid = Grid::new(UVec3::from_array(dims), Vec3::ONE);
     let cam = down_camera(4.0, 4.0, 50.0, Projection::Perspective);
     let avg = opts(RenderMode::Avg, 0.5);
-    let grey = |scene: &Scene<AnyVolume>, t: SampleType| {
+    let grey = |scene: &Scene, t: SampleType| {
         let tf = TransferFunction::preset("ramp", t).unwrap();
         render(scene, &cam, &tf, &avg).pixel(16, 16)
     };
-    let s = Scene::new(AnyVolume::from(LinearVolume::from_fn(grid, |_| 30000u16)));
+    let s = Scene::new(AnyVolume::from_fn(grid, |_| 30000u16));
     let g = (255.0 * 30000.0 / 65535.0f64).round() as u8;
     assert_eq!(grey(&s, SampleType::U16), [g; 3], "u16");
-    let s = Scene::new(AnyVolume::from(LinearVolume::from_fn(grid, |_| 1000i16)));
+    let s = Scene::new(AnyVolume::from_fn(grid, |_| 1000i16));
     let g = (255.0 * 1000.0 / 32767.0f64).round() as u8;
     assert_eq!(grey(&s, SampleType::I16), [g; 3], "i16");
-    let s = Scene::new(AnyVolume::from(LinearVolume::from_fn(grid, |_| 0.25f32)));
+    let s = Scene::new(AnyVolume::from_fn(grid, |_| 0.25f32));
     assert_eq!(grey(&s, SampleType::F32), [64; 3], "f32");
     // MIP with the u16 ramp: a = c = 30000/65535.
-    let s = Scene::new(AnyVolume::from(LinearVolume::from_fn(grid, |_| 30000u16)));
+    let s = Scene::new(AnyVolume::from_fn(grid, |_| 30000u16));
     let tf = TransferFunction::preset("ramp", SampleType::U16).unwrap();
     let px = render(&s, &cam, &tf, &opts(RenderMode::Mip, 0.5)).pixel(16, 16);
     let g = (255.0 * 30000.0 / 65535.0f64).round() as u8;
@@ -262,7 +262,7 @@ fn avg_and_ramp_follow_the_sample_type() {
 #[test]
 fn step_tf_is_exact_for_wide_value_spans() {
     let grid = Grid::new(UVec3::splat(9), Vec3::ONE);
-    let scene = Scene::new(LinearVolume::from_fn(grid, |_| 1012u16));
+    let scene = Scene::new(AnyVolume::from_fn(grid, |_| 1012u16));
     let tf = tf_points(
         Interpolation::Step,
         &[

@@ -51,10 +51,10 @@ fn iso_hits_lie_on_the_analytic_sphere() {
         c: grid.bounds().center() + Vec3::new(1.3, -0.7, 0.4),
         r: 13.0,
     };
-    let f32_scene = Scene::new(LinearVolume::from_fn(grid, |v| {
+    let f32_scene = Scene::new(AnyVolume::from_fn(grid, |v| {
         sphere.value(grid.voxel_to_world(v.as_vec3()))
     }));
-    let u8_scene = Scene::new(LinearVolume::from_fn(grid, |v| {
+    let u8_scene = Scene::new(AnyVolume::from_fn(grid, |v| {
         sphere
             .value(grid.voxel_to_world(v.as_vec3()))
             .round()
@@ -123,7 +123,7 @@ fn iso_silhouette_matches_the_sphere() {
         c: Vec3::new(19.2, 17.6, 21.0),
         r: 12.5,
     };
-    let scene = Scene::new(LinearVolume::from_fn(grid, |v| sphere.value(v.as_vec3())));
+    let scene = Scene::new(AnyVolume::from_fn(grid, |v| sphere.value(v.as_vec3())));
     let tf = tf_points(
         Interpolation::Linear,
         &[(0.0, [1.0, 0.5, 0.0], 1.0), (200.0, [1.0, 0.5, 0.0], 1.0)],
@@ -173,7 +173,7 @@ fn shading_darkens_towards_the_rim() {
         c: Vec3::splat(20.0),
         r: 14.0,
     };
-    let scene = Scene::new(LinearVolume::from_fn(grid, |v| sphere.value(v.as_vec3())));
+    let scene = Scene::new(AnyVolume::from_fn(grid, |v| sphere.value(v.as_vec3())));
     let tf = tf_points(
         Interpolation::Linear,
         &[(0.0, [0.6; 3], 1.0), (300.0, [0.6; 3], 1.0)],
@@ -214,7 +214,7 @@ fn shading_darkens_towards_the_rim() {
 #[test]
 fn ess_changes_no_iso_hit_on_random_rays() {
     let (grid, f) = common::phantom_on_grid([37, 29, 41], Vec3::new(1.0, 1.5, 0.75));
-    let lin = Scene::new(LinearVolume::from_fn(grid, f));
+    let lin = Scene::new(AnyVolume::from_fn(grid, f));
     let tf = TransferFunction::preset("ramp", SampleType::U8).unwrap();
     let mut rng = fastrand::Rng::with_seed(10);
     let (lo, hi) = (grid.bounds().min, grid.bounds().max);

@@ -18,8 +18,8 @@ use raycaster::prelude::*;
 #[test]
 fn ess_changes_nothing_on_single_rays() {
     let (grid, f) = common::phantom_on_grid([37, 29, 41], Vec3::new(1.0, 1.5, 0.75));
-    let lin = Scene::new(LinearVolume::from_fn(grid, f));
-    let bri = Scene::new(BrickedVolume::from_fn(grid, 6, f).unwrap());
+    let lin = Scene::new(AnyVolume::from_fn(grid, f));
+    let bri = Scene::new(AnyVolume::bricked_from_fn(grid, 6, f).unwrap());
     let mut rng = fastrand::Rng::with_seed(9);
     let (lo, hi) = (grid.bounds().min, grid.bounds().max);
     let mut skipped = 0u64;
@@ -151,7 +151,7 @@ fn ess_sample_counts() {
     // offset from a macrocell corner (64 = 8 macrocells).
     let small = Scene::new(u8_volume([33; 3], Vec3::ONE, ball(Vec3::splat(16.3))));
     let big = Scene::new(u8_volume([161; 3], Vec3::ONE, ball(Vec3::splat(80.3))));
-    let count = |scene: &Scene<LinearVolume<u8>>, centre: Vec3, ess: bool, mode: RenderMode| {
+    let count = |scene: &Scene, centre: Vec3, ess: bool, mode: RenderMode| {
         let mut cam = Camera::look_at(centre + Vec3::new(8.0, 5.0, 50.0), centre, 48, 48);
         cam.fov_y_deg = 40.0;
         let o = RenderOptions {

@@ -16,23 +16,17 @@ use raycaster::prelude::*;
 
 /// Every voxel of a u8 volume of any layout, in linear order.
 fn voxels_u8(v: &AnyVolume) -> Vec<u8> {
-    fn all<V: Volume<Sample = u8>>(v: &V) -> Vec<u8> {
-        let d = v.grid().dims;
-        let mut out = Vec::with_capacity(v.grid().voxel_count() as usize);
-        for x in 0..d.x {
-            for y in 0..d.y {
-                for z in 0..d.z {
-                    out.push(v.voxel(UVec3::new(x, y, z)));
-                }
+    assert_eq!(v.sample_type(), SampleType::U8, "expected a u8 volume");
+    let d = v.grid().dims;
+    let mut out = Vec::with_capacity(v.grid().voxel_count() as usize);
+    for x in 0..d.x {
+        for y in 0..d.y {
+            for z in 0..d.z {
+                out.push(v.value(UVec3::new(x, y, z)) as u8);
             }
         }
-        out
     }
-    match v {
-        AnyVolume::LinearU8(v) => all(v),
-        AnyVolume::BrickedU8(v) => all(v),
-        other => panic!("expected a u8 volume, got {:?}", other.sample_type()),
-    }
+    out
 }
 
 // ------------------------------------------------ layouts, files and interop
@@ -45,7 +39,7 @@ fn linear_bricked_and_file_volumes_render_identically() {
     let spacing = Vec3::new(1.0, 0.5, 2.0);
     let f = common::phantom(dims);
     let grid = Grid::new(UVec3::from_array(dims), spacing);
-    let linear = LinearVolume::from_fn(grid, |v| f(v.x, v.y, v.z));
+    let linear = AnyVolume::from_fn(grid, |v| f(v.x, v.y, v.z));
     let c = grid.bounds().center();
     let cams = [
         Camera::look_at(c + Vec3::new(20.0, 30.0, 60.0), c, 48, 40),
@@ -63,7 +57,7 @@ fn linear_bricked_and_file_volumes_render_identically() {
         (RenderMode::Avg, false),
         (RenderMode::Iso, false),
     ];
-    let images = |scene: &Scene<AnyVolume>| -> Vec<Vec<u8>> {
+    let images = |scene: &Scene| -> Vec<Vec<u8>> {
         let mut out = Vec::new();
         for cam in &cams {
             for (mode, ess) in modes {
@@ -81,17 +75,13 @@ fn linear_bricked_and_file_volumes_render_identically() {
         }
         out
     };
-    let want_voxels = linear.samples().to_vec();
-    let want = images(&Scene::new(AnyVolume::from(linear)));
+    let want_voxels = linear.samples::<u8>().unwrap().to_vec();
+    let want = images(&Scene::new(linear));
     for side in [2u32, 5, 16] {
-        let b = BrickedVolume::from_fn(grid, side, |v| f(v.x, v.y, v.z)).unwrap();
-        assert_eq!(
-            images(&Scene::new(AnyVolume::from(b))),
-            want,
-            "in-memory bricked B = {side}"
-        );
+        let b = AnyVolume::bricked_from_fn(grid, side, |v| f(v.x, v.y, v.z)).unwrap();
+        assert_eq!(images(&Scene::new(b)), want, "in-memory bricked B = {side}");
     }
-    let source = LinearVolume::from_fn(grid, |v| f(v.x, v.y, v.z));
+    let source = AnyVolume::from_fn(grid, |v| f(v.x, v.y, v.z));
     for layout in [
         VolLayout::Linear,
         VolLayout::Bricked { side: 2 },
@@ -209,7 +199,7 @@ fn vol_round_trip() {
             .collect();
         let voxel = |x: u32, y: u32, z: u32| data[((x * dims[1] + y) * dims[2] + z) as usize];
         let grid = Grid::new(UVec3::from_array(dims), Vec3::from_array(spacing));
-        let vol = LinearVolume::from_fn(grid, |v| voxel(v.x, v.y, v.z));
+        let vol = AnyVolume::from_fn(grid, |v| voxel(v.x, v.y, v.z));
         for layout in [
             VolLayout::Linear,
             VolLayout::Bricked { side: 2 },

@@ -26,7 +26,7 @@ use reference::{RefCamera, RefProjection, RefTf, RefVolume, V3};
 
 /// A library scene and the reference volume holding the same samples.
 pub struct Pair {
-    pub scene: Scene<AnyVolume>,
+    pub scene: Scene,
     pub reference: RefVolume,
 }
 
@@ -58,15 +58,14 @@ pub fn make_pair_typed<S>(
 ) -> Pair
 where
     S: Sample + Into<f64>,
-    AnyVolume: From<LinearVolume<S>> + From<BrickedVolume<S>>,
 {
     let mut grid = Grid::new(UVec3::from_array(dims), v3f(spacing));
     grid.origin = v3f(origin);
     let any: AnyVolume = match layout {
-        TestLayout::Linear => LinearVolume::from_fn(grid, |v| f(v.x, v.y, v.z)).into(),
-        TestLayout::Bricked(side) => BrickedVolume::from_fn(grid, side, |v| f(v.x, v.y, v.z))
-            .expect("bricked volume")
-            .into(),
+        TestLayout::Linear => AnyVolume::from_fn(grid, |v| f(v.x, v.y, v.z)),
+        TestLayout::Bricked(side) => {
+            AnyVolume::bricked_from_fn(grid, side, |v| f(v.x, v.y, v.z)).expect("bricked volume")
+        }
     };
     let mut reference = RefVolume::from_fn(
         [dims[0] as usize, dims[1] as usize, dims[2] as usize],

@@ -10,8 +10,8 @@ use raycaster::transfer::TfLut;
 
 /// Integrates single rays with the library's integrators (the API renderers
 /// are built from), for one volume, TF, step and mode.
-pub struct RayLab<'a, V: Volume> {
-    scene: &'a Scene<V>,
+pub struct RayLab<'a> {
+    scene: &'a Scene,
     tf: &'a TransferFunction,
     lut: TfLut,
     skip: SkipGrid,
@@ -19,19 +19,26 @@ pub struct RayLab<'a, V: Volume> {
     iso: f32,
 }
 
-impl<'a, V: Volume> RayLab<'a, V> {
+/// Work on one ray segment with the frame context of a concretely typed
+/// volume.
+trait RayJob {
+    type Out;
+    fn run<V: Volume>(self, ctx: &FrameContext<'_, V>, seg: &RaySegment) -> Self::Out;
+}
+
+impl<'a> RayLab<'a> {
     /// For DVR and MIP: a macrocell is empty when the TF shows nothing in
     /// its value range.
-    pub fn dvr(scene: &'a Scene<V>, tf: &'a TransferFunction, step: f32) -> Self {
+    pub fn dvr(scene: &'a Scene, tf: &'a TransferFunction, step: f32) -> Self {
         Self::new(scene, tf, step, None)
     }
 
     /// For iso: a macrocell is empty when its value range misses `iso`.
-    pub fn iso(scene: &'a Scene<V>, tf: &'a TransferFunction, step: f32, iso: f32) -> Self {
+    pub fn iso(scene: &'a Scene, tf: &'a TransferFunction, step: f32, iso: f32) -> Self {
         Self::new(scene, tf, step, Some(iso))
     }
 
-    fn new(scene: &'a Scene<V>, tf: &'a TransferFunction, step: f32, iso: Option<f32>) -> Self {
+    fn new(scene: &'a Scene, tf: &'a TransferFunction, step: f32, iso: Option<f32>) -> Self {
         let lut = TfLut::new(tf, step);
         let skip = match iso {
             None => SkipGrid::build(scene.macrocells(), |lo, hi| lut.any_visible(lo, hi)),
@@ -47,48 +54,81 @@ impl<'a, V: Volume> RayLab<'a, V> {
         }
     }
 
-    fn ctx(&self, ess: bool) -> FrameContext<'_, V> {
-        FrameContext {
-            volume: self.scene.volume(),
-            tf: self.tf,
-            lut: &self.lut,
-            macrocells: self.scene.macrocells(),
-            skip: &self.skip,
-            ess,
-            ert: None,
-            shading: None,
-            iso_value: self.iso,
-            avg_norm: 255.0,
+    /// Runs `job` on the segment of `ray` inside the volume (`None` when
+    /// the ray misses it).
+    fn run<J: RayJob>(&self, ray: &Ray, ess: bool, job: J) -> Option<J::Out> {
+        struct Visit<'l, 'a, J> {
+            lab: &'l RayLab<'a>,
+            seg: RaySegment,
+            ess: bool,
+            job: J,
         }
-    }
-
-    fn segment(&self, ray: &Ray) -> Option<RaySegment> {
-        RaySegment::new(self.scene.volume().grid(), ray, self.step)
+        impl<J: RayJob> VolumeVisitor for Visit<'_, '_, J> {
+            type Output = J::Out;
+            fn visit<V: Volume>(self, volume: &V) -> J::Out {
+                let lab = self.lab;
+                let ctx = FrameContext {
+                    volume,
+                    tf: lab.tf,
+                    lut: &lab.lut,
+                    macrocells: lab.scene.macrocells(),
+                    skip: &lab.skip,
+                    ess: self.ess,
+                    ert: None,
+                    shading: None,
+                    iso_value: lab.iso,
+                    avg_norm: 255.0,
+                };
+                self.job.run(&ctx, &self.seg)
+            }
+        }
+        let seg = RaySegment::new(self.scene.grid(), ray, self.step)?;
+        Some(self.scene.volume().visit(Visit {
+            lab: self,
+            seg,
+            ess,
+            job,
+        }))
     }
 
     /// World-space iso hit, and the samples taken.
     pub fn iso_hit(&self, ray: &Ray, ess: bool) -> (Option<Vec3>, u64) {
-        let Some(seg) = self.segment(ray) else {
-            return (None, 0);
-        };
-        let mut st = IsoState::default();
-        let n = st.integrate(&self.ctx(ess), &seg, 0, seg.count);
-        let grid = self.scene.volume().grid();
-        (st.hit.map(|(p, _)| grid.voxel_to_world(p)), n)
+        struct Iso;
+        impl RayJob for Iso {
+            type Out = (Option<Vec3>, u64);
+            fn run<V: Volume>(self, ctx: &FrameContext<'_, V>, seg: &RaySegment) -> Self::Out {
+                let mut st = IsoState::default();
+                let n = st.integrate(ctx, seg, 0, seg.count);
+                (st.hit.map(|(p, _)| ctx.volume.grid().voxel_to_world(p)), n)
+            }
+        }
+        self.run(ray, ess, Iso).unwrap_or((None, 0))
     }
 
     pub fn dvr_state(&self, ray: &Ray, ess: bool) -> Option<(DvrState, u64)> {
-        let seg = self.segment(ray)?;
-        let mut st = DvrState::default();
-        let n = st.integrate(&self.ctx(ess), &seg, 0, seg.count);
-        Some((st, n))
+        struct Dvr;
+        impl RayJob for Dvr {
+            type Out = (DvrState, u64);
+            fn run<V: Volume>(self, ctx: &FrameContext<'_, V>, seg: &RaySegment) -> Self::Out {
+                let mut st = DvrState::default();
+                let n = st.integrate(ctx, seg, 0, seg.count);
+                (st, n)
+            }
+        }
+        self.run(ray, ess, Dvr)
     }
 
     pub fn mip_max(&self, ray: &Ray, ess: bool) -> Option<f32> {
-        let seg = self.segment(ray)?;
-        let mut st = MipState::default();
-        st.integrate(&self.ctx(ess), &seg, 0, seg.count);
-        Some(st.max)
+        struct Mip;
+        impl RayJob for Mip {
+            type Out = f32;
+            fn run<V: Volume>(self, ctx: &FrameContext<'_, V>, seg: &RaySegment) -> f32 {
+                let mut st = MipState::default();
+                st.integrate(ctx, seg, 0, seg.count);
+                st.max
+            }
+        }
+        self.run(ray, ess, Mip)
     }
 }
 

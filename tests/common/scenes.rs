@@ -5,7 +5,6 @@
 
 use glam::{UVec3, Vec3};
 use raycaster::prelude::*;
-use raycaster::scene::VolumeSource;
 
 /// Options for `mode` at step `step`: no ERT, ESS or shading, black
 /// background.
@@ -22,12 +21,7 @@ pub fn opts(mode: RenderMode, step: f32) -> RenderOptions {
 }
 
 /// Renders with the serial renderer.
-pub fn render<V: VolumeSource>(
-    scene: &Scene<V>,
-    cam: &Camera,
-    tf: &TransferFunction,
-    o: &RenderOptions,
-) -> Frame {
+pub fn render(scene: &Scene, cam: &Camera, tf: &TransferFunction, o: &RenderOptions) -> Frame {
     SerialRenderer::new()
         .render(scene, cam, tf, o)
         .expect("render")
@@ -57,8 +51,8 @@ pub fn tf_points(interpolation: Interpolation, pts: &[(f32, [f32; 3], f32)]) -> 
 }
 
 /// A linear u8 volume of `dims` and `spacing` with the voxels `f` gives.
-pub fn u8_volume(dims: [u32; 3], spacing: Vec3, f: impl Fn(UVec3) -> u8) -> LinearVolume<u8> {
-    LinearVolume::from_fn(Grid::new(UVec3::from_array(dims), spacing), f)
+pub fn u8_volume(dims: [u32; 3], spacing: Vec3, f: impl Fn(UVec3) -> u8) -> AnyVolume {
+    AnyVolume::from_fn(Grid::new(UVec3::from_array(dims), spacing), f)
 }
 
 /// A camera looking straight down −z at (x, y) from height `z`, with an odd

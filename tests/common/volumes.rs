@@ -26,12 +26,9 @@ pub const ALL_TYPES: [SampleType; 5] = [
 /// Deterministic test data of type `ty` on `dims`, spanning the type's range
 /// (both extremes present, negatives for signed types), in a linear volume.
 pub fn synthetic(ty: SampleType, dims: UVec3, spacing: Vec3, seed: u64) -> AnyVolume {
-    fn build<S: Sample>(grid: Grid, v: Vec<S>) -> AnyVolume
-    where
-        AnyVolume: From<LinearVolume<S>>,
-    {
+    fn build<S: Sample>(grid: Grid, v: Vec<S>) -> AnyVolume {
         let d = grid.dims;
-        LinearVolume::from_fn(grid, |p| v[((p.z * d.y + p.y) * d.x + p.x) as usize]).into()
+        AnyVolume::from_fn(grid, |p| v[((p.z * d.y + p.y) * d.x + p.x) as usize])
     }
     fn ends<S: Copy>(mut v: Vec<S>, lo: S, hi: S) -> Vec<S> {
         let n = v.len();
@@ -63,14 +60,6 @@ pub fn synthetic(ty: SampleType, dims: UVec3, spacing: Vec3, seed: u64) -> AnyVo
             v[3] = 0.0;
             build(grid, ends(v, -3.0e38, 3.0e38))
         }
-    }
-}
-
-/// The u8 volume inside an [`AnyVolume`] (linear), for the `.vol` writer.
-pub fn as_linear_u8(v: &AnyVolume) -> &LinearVolume<u8> {
-    match v {
-        AnyVolume::LinearU8(v) => v,
-        other => panic!("expected a linear u8 volume, got {:?}", other.sample_type()),
     }
 }
 
@@ -111,7 +100,7 @@ pub fn le_bytes(v: &AnyVolume) -> Vec<u8> {
 }
 
 pub fn voxel_f32(v: &AnyVolume, x: u32, y: u32, z: u32) -> f32 {
-    raycaster::dispatch_volume!(v, v => v.voxel(UVec3::new(x, y, z)).to_f32())
+    v.value(UVec3::new(x, y, z))
 }
 
 /// Every voxel as f32, x fastest.

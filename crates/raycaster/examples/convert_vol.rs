@@ -5,7 +5,7 @@
 //! ```
 //! Without BRICK_SIDE the output is linear.
 
-use raycaster::format::vol::{self, VolLayout, VolVolume};
+use raycaster::format::vol::{self, VolLayout};
 use raycaster::storage::LoadMode;
 
 fn main() {
@@ -22,10 +22,8 @@ fn main() {
             std::process::exit(2);
         }
     };
-    let result = vol::open(args[0].as_ref(), LoadMode::Map).and_then(|v| match v {
-        VolVolume::Linear(v) => vol::write(args[1].as_ref(), &v, layout),
-        VolVolume::Bricked(v) => vol::write(args[1].as_ref(), &v, layout),
-    });
+    let result = vol::open(args[0].as_ref(), LoadMode::Map)
+        .and_then(|v| vol::write(args[1].as_ref(), &v, layout));
     if let Err(e) = result {
         eprintln!("convert_vol: {e}");
         std::process::exit(1);

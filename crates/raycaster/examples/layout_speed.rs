@@ -32,9 +32,7 @@ fn run(path: &str, preset: &str, repeat: usize) -> Result<(), raycaster::Error> 
         ..Default::default()
     };
     let linear = raycaster::format::open_file(path.as_ref(), &options)?.volume;
-    let bricked: AnyVolume = raycaster::dispatch_volume!(&linear, v => {
-        BrickedVolume::from_fn(*v.grid(), 16, |p| v.voxel(p))?.into()
-    });
+    let bricked = linear.with_layout(Layout::Bricked { side: 16 })?;
     let t = linear.sample_type();
     for (name, volume) in [("linear", linear), ("bricked16", bricked)] {
         let scene = Scene::new(volume);

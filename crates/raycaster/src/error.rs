@@ -33,6 +33,42 @@ pub enum Error {
         /// What is wrong with it.
         message: String,
     },
+    /// A file or volume holds more than this machine can address.
+    #[error("{}: too large for this machine ({what})", path.display())]
+    TooLarge {
+        /// The file concerned (empty for a volume built in memory).
+        path: PathBuf,
+        /// What would not fit.
+        what: String,
+    },
+    /// Samples, dimensions and layout of a volume built in memory disagree.
+    #[error("invalid volume: {0}")]
+    InvalidVolume(String),
+    /// A rendering option (step, threshold, camera, thread count, ...) is
+    /// out of range.
+    #[error("invalid {option}: {message}")]
+    InvalidOption {
+        /// The option, as named on the command line where there is one.
+        option: &'static str,
+        /// What is wrong with its value.
+        message: String,
+    },
+    /// The operating system would not start a thread.
+    #[error("cannot start {count} {role} threads: {source}")]
+    Threads {
+        /// Threads asked for.
+        count: usize,
+        /// What they were for (`render`, `renderer front`, ...).
+        role: &'static str,
+        /// What the operating system said.
+        source: std::io::Error,
+    },
+    /// A frame was cancelled by a caller that cannot see cancellations.
+    #[error("the {renderer} renderer stopped a frame that could not be cancelled")]
+    Cancelled {
+        /// The renderer's name.
+        renderer: &'static str,
+    },
     /// An argument given by the caller is out of range.
     #[error("{0}")]
     InvalidArgument(String),
@@ -44,6 +80,14 @@ impl Error {
         Error::Io {
             path: path.to_path_buf(),
             source,
+        }
+    }
+
+    /// An out-of-range rendering option.
+    pub fn option(option: &'static str, message: impl Into<String>) -> Self {
+        Error::InvalidOption {
+            option,
+            message: message.into(),
         }
     }
 

@@ -31,7 +31,7 @@
 //!
 //! // A 32³ volume holding a solid ball of value 200.
 //! let grid = Grid::new(UVec3::splat(32), Vec3::ONE);
-//! let volume = LinearVolume::from_fn(grid, |v| {
+//! let volume = AnyVolume::from_fn(grid, |v| {
 //!     if (v.as_vec3() - Vec3::splat(15.5)).length() < 10.0 { 200u8 } else { 0 }
 //! });
 //! let scene = Scene::new(volume);
@@ -87,5 +87,5 @@ pub mod prelude {
     pub use crate::scene::Scene;
     pub use crate::storage::LoadMode;
     pub use crate::transfer::{Interpolation, TfPoint, TransferFunction};
-    pub use crate::volume::{AnyVolume, BrickedVolume, Grid, Layout, LinearVolume, Volume};
+    pub use crate::volume::{AnyVolume, AxisOrder, Grid, Layout, Volume, VolumeVisitor};
 }

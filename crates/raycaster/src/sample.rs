@@ -2,7 +2,9 @@
 //!
 //! Renderers are generic over [`Sample`], so a `u8` volume and an `f32` volume
 //! each get their own monomorphised hot loop with no conversion call through a
-//! pointer.
+//! pointer. [`SampleType`] is the same choice made at run time (after reading
+//! a file header); [`SampleType::visit`] is the one place where a run-time
+//! tag becomes a Rust type.
 
 /// The runtime tag of a sample type.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
@@ -19,6 +21,15 @@ pub enum SampleType {
     F32,
 }
 
+/// Code that runs with the Rust type of a [`SampleType`] (a closure generic
+/// over the sample type).
+pub trait SampleTypeVisitor {
+    /// What the visit returns.
+    type Output;
+    /// Runs with `S` the type the tag names.
+    fn visit<S: Sample>(self) -> Self::Output;
+}
+
 impl SampleType {
     /// Size of one sample in bytes.
     pub fn size(self) -> usize {
@@ -29,8 +40,8 @@ impl SampleType {
         }
     }
 
-    /// The largest value of the type: the value the `ramp` preset maps to full
-    /// opacity and the divisor of the `avg` mode (SPEC §4, §5). 1.0 for floats.
+    /// The largest value of the type: the value the `ramp` preset maps to
+    /// full opacity and the divisor of the `avg` mode. 1.0 for floats.
     pub fn max_value(self) -> f32 {
         match self {
             SampleType::U8 => u8::MAX as f32,
@@ -51,11 +62,48 @@ impl SampleType {
             SampleType::F32 => "f32",
         }
     }
+
+    /// Runs `visitor` with the Rust type this tag names.
+    pub fn visit<T: SampleTypeVisitor>(self, visitor: T) -> T::Output {
+        match self {
+            SampleType::U8 => visitor.visit::<u8>(),
+            SampleType::I8 => visitor.visit::<i8>(),
+            SampleType::U16 => visitor.visit::<u16>(),
+            SampleType::I16 => visitor.visit::<i16>(),
+            SampleType::F32 => visitor.visit::<f32>(),
+        }
+    }
 }
 
 impl std::fmt::Display for SampleType {
     fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
         f.write_str(self.name())
+    }
+}
+
+/// Byte order of multi-byte samples.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
+pub enum Endian {
+    /// Least significant byte first (x86, ARM).
+    Little,
+    /// Most significant byte first.
+    Big,
+}
+
+impl Endian {
+    /// The byte order of this machine.
+    pub const NATIVE: Endian = if cfg!(target_endian = "little") {
+        Endian::Little
+    } else {
+        Endian::Big
+    };
+
+    /// `little` or `big`.
+    pub fn name(self) -> &'static str {
+        match self {
+            Endian::Little => "little",
+            Endian::Big => "big",
+        }
     }
 }
 
@@ -70,6 +118,12 @@ pub trait Sample: bytemuck::Pod + PartialOrd + Send + Sync + std::fmt::Debug + '
 
     /// The value as a float, exactly for every integer type here.
     fn to_f32(self) -> f32;
+
+    /// The value from its first `size_of::<Self>()` bytes in `endian` order.
+    fn decode(bytes: &[u8], endian: Endian) -> Self;
+
+    /// Appends the value's bytes in `endian` order to `out`.
+    fn encode(self, endian: Endian, out: &mut Vec<u8>);
 
     /// `min` written so that loops over slices vectorise.
     #[inline(always)]
@@ -93,6 +147,22 @@ macro_rules! impl_sample {
             #[inline(always)]
             fn to_f32(self) -> f32 {
                 self as f32
+            }
+            #[inline]
+            fn decode(bytes: &[u8], endian: Endian) -> Self {
+                let mut a = [0u8; std::mem::size_of::<$t>()];
+                a.copy_from_slice(&bytes[..std::mem::size_of::<$t>()]);
+                match endian {
+                    Endian::Little => <$t>::from_le_bytes(a),
+                    Endian::Big => <$t>::from_be_bytes(a),
+                }
+            }
+            #[inline]
+            fn encode(self, endian: Endian, out: &mut Vec<u8>) {
+                match endian {
+                    Endian::Little => out.extend_from_slice(&self.to_le_bytes()),
+                    Endian::Big => out.extend_from_slice(&self.to_be_bytes()),
+                }
             }
         }
     };

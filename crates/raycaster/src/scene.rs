@@ -1,53 +1,17 @@
 //! A [`Scene`]: a volume together with the acceleration data built from it
 //! once, ready to be rendered any number of times.
 //!
-//! The volume may be concretely typed (`Scene<LinearVolume<u8>>`) or known only
-//! at run time (`Scene<AnyVolume>`); either way renderers reach the concrete
-//! type once per frame through [`VolumeSource`], never per sample.
+//! Renderers reach the volume's concrete type once per frame through
+//! [`AnyVolume::visit`], never per sample.
 
 use crate::accel::MacrocellGrid;
-use crate::volume::{AnyVolume, Grid, Volume};
-
-/// Code that runs on a concretely typed volume (a generic closure).
-pub trait VolumeVisitor {
-    /// What the visit returns.
-    type Output;
-    /// Runs on the volume.
-    fn visit<V: Volume>(self, volume: &V) -> Self::Output;
-}
-
-/// Something that can hand a concretely typed [`Volume`] to a visitor: every
-/// `Volume`, and [`AnyVolume`].
-pub trait VolumeSource: Send + Sync {
-    /// Calls `visitor.visit` with the concrete volume.
-    fn accept<T: VolumeVisitor>(&self, visitor: T) -> T::Output;
-    /// Dimensions, spacing and origin.
-    fn source_grid(&self) -> &Grid;
-}
-
-impl<V: Volume> VolumeSource for V {
-    fn accept<T: VolumeVisitor>(&self, visitor: T) -> T::Output {
-        visitor.visit(self)
-    }
-    fn source_grid(&self) -> &Grid {
-        self.grid()
-    }
-}
-
-impl VolumeSource for AnyVolume {
-    fn accept<T: VolumeVisitor>(&self, visitor: T) -> T::Output {
-        crate::dispatch_volume!(self, v => visitor.visit(v))
-    }
-    fn source_grid(&self) -> &Grid {
-        self.grid()
-    }
-}
+use crate::volume::{AnyVolume, Grid, Volume, VolumeVisitor};
 
 /// A volume and its macrocell value ranges.
 #[derive(Debug)]
-pub struct Scene<V = AnyVolume> {
+pub struct Scene {
     id: u64,
-    volume: V,
+    volume: AnyVolume,
     macrocells: MacrocellGrid,
     value_range: (f32, f32),
 }
@@ -65,20 +29,20 @@ impl VolumeVisitor for BuildMacrocells {
     }
 }
 
-impl<V: VolumeSource> Scene<V> {
+impl Scene {
     /// Builds the macrocell grid of `volume` (one pass over the data) with
     /// the default macrocell size (see [`default_macrocell`]).
-    pub fn new(volume: V) -> Self {
+    pub fn new(volume: AnyVolume) -> Self {
         Self::build(volume, None)
     }
 
     /// As [`Scene::new`] with an explicit macrocell side in voxels.
-    pub fn with_macrocell(volume: V, cell: u32) -> Self {
+    pub fn with_macrocell(volume: AnyVolume, cell: u32) -> Self {
         Self::build(volume, Some(cell))
     }
 
-    fn build(volume: V, cell: Option<u32>) -> Self {
-        let macrocells = volume.accept(BuildMacrocells(cell));
+    fn build(volume: AnyVolume, cell: Option<u32>) -> Self {
+        let macrocells = volume.visit(BuildMacrocells(cell));
         let value_range = macrocells.value_range();
         static NEXT_ID: std::sync::atomic::AtomicU64 = std::sync::atomic::AtomicU64::new(1);
         Scene {
@@ -95,13 +59,13 @@ impl<V: VolumeSource> Scene<V> {
     }
 
     /// The volume.
-    pub fn volume(&self) -> &V {
+    pub fn volume(&self) -> &AnyVolume {
         &self.volume
     }
 
     /// Dimensions, spacing and origin.
     pub fn grid(&self) -> &Grid {
-        self.volume.source_grid()
+        self.volume.grid()
     }
 
     /// The macrocell grid.

@@ -8,7 +8,7 @@ use std::fs::File;
 use std::path::Path;
 
 use crate::error::{Error, Result};
-use crate::sample::Sample;
+use crate::sample::{Sample, SampleType};
 
 /// Where a volume's samples live.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -30,54 +30,79 @@ pub enum LoadMode {
     Ram,
 }
 
-/// A contiguous run of samples of type `S`, owned or mapped.
-pub struct Storage<S: Sample> {
+/// A contiguous array of samples of one [`SampleType`], owned or mapped.
+///
+/// The storage itself is untyped (the tag says what it holds), so one
+/// volume type serves every sample type; [`Storage::as_slice`] hands out the
+/// typed view once per frame, not per sample.
+pub struct Storage {
     /// Keeps the memory that `ptr` points into alive.
-    owner: Owner<S>,
-    ptr: *const S,
+    owner: Owner,
+    ptr: *const u8,
+    /// Number of samples.
     len: usize,
+    sample_type: SampleType,
 }
 
 // The fields are only held, never read: they keep `ptr`'s memory alive.
 #[allow(dead_code)]
-enum Owner<S> {
-    Owned(Vec<S>),
+enum Owner {
+    /// A `Vec<S>` of the storage's sample type (type-erased; only dropped).
+    Vec(Box<dyn std::any::Any + Send + Sync>),
     /// A file mapped read-only.
     Mapped(memmap2::Mmap),
     /// RAM from an anonymous map (huge-page friendly), read-only.
     Anonymous(memmap2::Mmap),
 }
 
-// SAFETY: `ptr` points into memory owned by `owner` (a `Vec<S>` or a read-only
-// map), which is immutable for the storage's whole life; `S: Send + Sync`, so
-// sharing or sending the read-only view is as safe as sharing `&[S]`.
-unsafe impl<S: Sample> Send for Storage<S> {}
+// SAFETY: `ptr` points into memory owned by `owner` (a `Vec` or a read-only
+// map), which is immutable for the storage's whole life; every sample type is
+// plain data (`Pod + Send + Sync`), so sharing or sending the read-only view
+// is as safe as sharing `&[S]`.
+unsafe impl Send for Storage {}
 // SAFETY: as for `Send`: the storage is never written after construction.
-unsafe impl<S: Sample> Sync for Storage<S> {}
+unsafe impl Sync for Storage {}
 
-impl<S: Sample> Storage<S> {
+impl Storage {
     /// Storage that owns `samples`.
-    pub fn from_vec(samples: Vec<S>) -> Self {
-        let ptr = samples.as_ptr();
+    pub fn from_vec<S: Sample>(samples: Vec<S>) -> Self {
+        let ptr = samples.as_ptr() as *const u8;
         let len = samples.len();
         Storage {
-            owner: Owner::Owned(samples),
+            // Moving the Vec into the box moves its header, not its buffer.
+            owner: Owner::Vec(Box::new(samples)),
             ptr,
             len,
+            sample_type: S::TYPE,
         }
     }
 
-    /// Brings `len` samples starting at byte `offset` of `path` into memory,
-    /// mapped or read according to `mode`. When the mapped bytes are not aligned
-    /// for `S`, they are copied into RAM instead.
-    pub fn open(path: &Path, offset: u64, len: usize, mode: LoadMode) -> Result<Self> {
+    /// Brings `len` samples of `sample_type` starting at byte `offset` of
+    /// `path` into memory, mapped or read according to `mode`. When the
+    /// mapped bytes are not aligned for the type, they are copied into RAM
+    /// instead.
+    pub fn open(
+        path: &Path,
+        offset: u64,
+        sample_type: SampleType,
+        len: usize,
+        mode: LoadMode,
+    ) -> Result<Self> {
         let file = File::open(path).map_err(|e| Error::io(path, e))?;
-        let too_large = || Error::InvalidArgument(format!("{}: volume too large", path.display()));
-        let bytes = len
-            .checked_mul(std::mem::size_of::<S>())
-            .ok_or_else(too_large)?;
+        let too_large = || Error::TooLarge {
+            path: path.to_path_buf(),
+            what: format!("{len} samples of {sample_type}"),
+        };
+        let bytes = len.checked_mul(sample_type.size()).ok_or_else(too_large)?;
         let start = usize::try_from(offset).map_err(|_| too_large())?;
         let end = start.checked_add(bytes).ok_or_else(too_large)?;
+        let aligned = |p: *const u8| (p as usize).is_multiple_of(sample_type.size());
+        let storage = |owner, ptr| Storage {
+            owner,
+            ptr,
+            len,
+            sample_type,
+        };
         match mode {
             LoadMode::Map => {
                 // SAFETY: the map is read-only. Its bytes could change under us
@@ -88,30 +113,28 @@ impl<S: Sample> Storage<S> {
                 // of GB) defeats the purpose.
                 let map = unsafe { memmap2::Mmap::map(&file) }.map_err(|e| Error::io(path, e))?;
                 if map.len() < end {
-                    return Err(Error::InvalidArgument(format!(
-                        "{}: file has {} bytes, fewer than its {} samples need",
-                        path.display(),
-                        map.len(),
-                        len
-                    )));
+                    return Err(Error::format(
+                        path,
+                        crate::error::FormatError::WrongLength {
+                            expected: end as u64,
+                            found: map.len() as u64,
+                            detail: format!("{offset} bytes + {len} samples of {sample_type}"),
+                        },
+                    ));
                 }
                 #[cfg(unix)]
                 let _ = map.advise(memmap2::Advice::WillNeed);
-                match bytemuck::try_cast_slice::<u8, S>(&map[start..end]) {
-                    Ok(samples) => {
-                        let ptr = samples.as_ptr();
-                        Ok(Storage {
-                            owner: Owner::Mapped(map),
-                            ptr,
-                            len,
-                        })
-                    }
-                    // Misaligned for S: copy once rather than read unaligned
-                    // in the hot loop.
-                    Err(_) => Ok(Storage::from_vec(bytemuck::pod_collect_to_vec(
-                        &map[start..end],
-                    ))),
+                let ptr = map[start..end].as_ptr();
+                if aligned(ptr) {
+                    return Ok(storage(Owner::Mapped(map), ptr));
                 }
+                // Misaligned for the type: copy once into page-aligned RAM
+                // rather than read unaligned in the hot loop.
+                let mut block = anonymous_block(bytes).map_err(|e| Error::io(path, e))?;
+                block[..bytes].copy_from_slice(&map[start..end]);
+                let map = block.make_read_only().map_err(|e| Error::io(path, e))?;
+                let ptr = map.as_ptr();
+                Ok(storage(Owner::Anonymous(map), ptr))
             }
             LoadMode::Ram => {
                 use std::io::{Read, Seek, SeekFrom};
@@ -122,27 +145,34 @@ impl<S: Sample> Storage<S> {
                 f.read_exact(&mut block[..bytes])
                     .map_err(|e| Error::io(path, e))?;
                 let map = block.make_read_only().map_err(|e| Error::io(path, e))?;
-                let ptr = map.as_ptr() as *const S;
-                // Anonymous maps are page-aligned, so aligned for every S.
-                debug_assert!(bytemuck::try_cast_slice::<u8, S>(&map[..bytes]).is_ok());
-                Ok(Storage {
-                    owner: Owner::Anonymous(map),
-                    ptr,
-                    len,
-                })
+                let ptr = map.as_ptr();
+                // Anonymous maps are page-aligned, so aligned for every type.
+                debug_assert!(aligned(ptr));
+                Ok(storage(Owner::Anonymous(map), ptr))
             }
         }
     }
 
-    /// The samples.
+    /// The samples as `S`, which must be the storage's sample type (panics
+    /// otherwise: a caller bug, not a data problem).
     #[inline(always)]
-    pub fn as_slice(&self) -> &[S] {
-        // SAFETY: `ptr` and `len` describe memory owned by `self.owner`
-        // (checked at construction: a Vec's own buffer, or a range inside the
-        // map checked against the map's length and S's alignment). Neither a
-        // Vec's heap buffer nor a map moves when the Storage moves, and the
-        // owner is never mutated, so the slice is valid for `&self`'s lifetime.
-        unsafe { std::slice::from_raw_parts(self.ptr, self.len) }
+    pub fn as_slice<S: Sample>(&self) -> &[S] {
+        assert_eq!(S::TYPE, self.sample_type, "storage read as the wrong type");
+        // SAFETY: `ptr` and `len` describe `len` samples of `sample_type`
+        // (== S, checked above) in memory owned by `self.owner`, aligned for
+        // the type (checked at construction: a Vec<S>'s own buffer, or a
+        // page-aligned or alignment-checked range inside a map of sufficient
+        // length). Neither a Vec's heap buffer nor a map moves when the
+        // Storage moves, and the owner is never mutated, so the slice is
+        // valid for `&self`'s lifetime.
+        unsafe { std::slice::from_raw_parts(self.ptr as *const S, self.len) }
+    }
+
+    /// The samples as bytes in native byte order.
+    pub fn as_bytes(&self) -> &[u8] {
+        // SAFETY: as in `as_slice`: `len · size` bytes owned by `owner`,
+        // and every byte of a plain-data sample is initialised.
+        unsafe { std::slice::from_raw_parts(self.ptr, self.len * self.sample_type.size()) }
     }
 
     /// Number of samples.
@@ -155,19 +185,25 @@ impl<S: Sample> Storage<S> {
         self.len == 0
     }
 
+    /// The type of the samples.
+    pub fn sample_type(&self) -> SampleType {
+        self.sample_type
+    }
+
     /// Whether the samples are in RAM or mapped from a file.
     pub fn kind(&self) -> StorageKind {
         match self.owner {
             Owner::Mapped(_) => StorageKind::Mapped,
-            Owner::Owned(_) | Owner::Anonymous(_) => StorageKind::Ram,
+            Owner::Vec(_) | Owner::Anonymous(_) => StorageKind::Ram,
         }
     }
 }
 
-impl<S: Sample> std::fmt::Debug for Storage<S> {
+impl std::fmt::Debug for Storage {
     fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
         f.debug_struct("Storage")
             .field("kind", &self.kind())
+            .field("type", &self.sample_type)
             .field("len", &self.len)
             .finish()
     }
@@ -190,7 +226,8 @@ mod tests {
     #[test]
     fn owned_storage_round_trips() {
         let s = Storage::from_vec(vec![1u16, 2, 3]);
-        assert_eq!(s.as_slice(), &[1, 2, 3]);
+        assert_eq!(s.as_slice::<u16>(), &[1, 2, 3]);
+        assert_eq!(s.sample_type(), SampleType::U16);
         assert_eq!(s.kind(), StorageKind::Ram);
     }
 
@@ -201,31 +238,33 @@ mod tests {
         let path = dir.join("bytes.bin");
         let data: Vec<u8> = (0..10_000u32).map(|i| (i * 7 % 251) as u8).collect();
         std::fs::write(&path, &data).unwrap();
-        let mapped = Storage::<u8>::open(&path, 3, 9_000, LoadMode::Map).unwrap();
-        let ram = Storage::<u8>::open(&path, 3, 9_000, LoadMode::Ram).unwrap();
+        let mapped = Storage::open(&path, 3, SampleType::U8, 9_000, LoadMode::Map).unwrap();
+        let ram = Storage::open(&path, 3, SampleType::U8, 9_000, LoadMode::Ram).unwrap();
         assert_eq!(mapped.kind(), StorageKind::Mapped);
-        assert_eq!(mapped.as_slice(), &data[3..9_003]);
-        assert_eq!(ram.as_slice(), mapped.as_slice());
+        assert_eq!(mapped.as_slice::<u8>(), &data[3..9_003]);
+        assert_eq!(ram.as_slice::<u8>(), mapped.as_slice::<u8>());
         // Misaligned u16 view: copied, same values.
-        let odd = Storage::<u16>::open(&path, 1, 100, LoadMode::Map).unwrap();
+        let odd = Storage::open(&path, 1, SampleType::U16, 100, LoadMode::Map).unwrap();
         let expect: Vec<u16> = data[1..201]
             .chunks(2)
             .map(|c| u16::from_ne_bytes([c[0], c[1]]))
             .collect();
-        assert_eq!(odd.as_slice(), &expect[..]);
+        assert_eq!(odd.as_slice::<u16>(), &expect[..]);
         // Shared read-only access from several threads (the Send/Sync claim).
         let shared = std::sync::Arc::new(mapped);
         let sums: Vec<u64> = (0..4)
             .map(|_| {
                 let s = shared.clone();
-                std::thread::spawn(move || s.as_slice().iter().map(|&v| v as u64).sum::<u64>())
+                std::thread::spawn(move || {
+                    s.as_slice::<u8>().iter().map(|&v| v as u64).sum::<u64>()
+                })
             })
             .map(|h| h.join().unwrap())
             .collect();
         let want: u64 = data[3..9_003].iter().map(|&v| v as u64).sum();
         assert!(sums.iter().all(|&s| s == want));
         // Too short a file is an error, not a bad read.
-        assert!(Storage::<u8>::open(&path, 9_999, 2, LoadMode::Map).is_err());
+        assert!(Storage::open(&path, 9_999, SampleType::U8, 2, LoadMode::Map).is_err());
         std::fs::remove_dir_all(&dir).ok();
     }
 }

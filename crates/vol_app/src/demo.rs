@@ -7,7 +7,7 @@
 //! shading. Generated in memory in a few tens of milliseconds.
 
 use glam::{UVec3, Vec3};
-use raycaster::volume::{Grid, LinearVolume};
+use raycaster::volume::{AnyVolume, Grid};
 
 /// Side of the demo volume in voxels.
 pub const DEMO_SIZE: u32 = 160;
@@ -16,7 +16,7 @@ pub const DEMO_SIZE: u32 = 160;
 pub const DEMO_TF: &str = "shapes";
 
 /// Builds the demo volume.
-pub fn demo_volume() -> LinearVolume<u8> {
+pub fn demo_volume() -> AnyVolume {
     let n = DEMO_SIZE as f32;
     let mut rng = fastrand::Rng::with_seed(0x5EED);
     struct Shape {
@@ -42,7 +42,7 @@ pub fn demo_volume() -> LinearVolume<u8> {
         })
         .collect();
     let mid = Vec3::splat((n - 1.0) * 0.5);
-    LinearVolume::from_fn(Grid::new(UVec3::splat(DEMO_SIZE), Vec3::ONE), |v| {
+    AnyVolume::from_fn(Grid::new(UVec3::splat(DEMO_SIZE), Vec3::ONE), |v| {
         let p = v.as_vec3();
         // A thin translucent shell around everything.
         let r = (p - mid).length();
@@ -63,13 +63,12 @@ pub fn demo_volume() -> LinearVolume<u8> {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use raycaster::volume::Volume;
 
     #[test]
     fn demo_holds_all_three_bands_of_the_shapes_tf() {
         let v = demo_volume();
         let mut seen = [false; 256];
-        for &s in v.samples() {
+        for &s in v.samples::<u8>().expect("u8 samples") {
             seen[s as usize] = true;
         }
         assert!(seen[0] && seen[88] && seen[97] && seen[104] && seen[90]);

@@ -21,7 +21,7 @@ pub fn run(args: &RenderArgs) -> Result<(), Error> {
     };
     let volume = match &args.file {
         Some(path) => raycaster::format::open_file(path, &args.raw.open_options(mode))?.volume,
-        None => AnyVolume::from(crate::demo::demo_volume()),
+        None => crate::demo::demo_volume(),
     };
     let sample_type = volume.sample_type();
     let scene = match args.macrocell {

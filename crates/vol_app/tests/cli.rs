@@ -8,7 +8,7 @@ use std::process::{Command, Output};
 use common::TempDir;
 use glam::{UVec3, Vec3};
 use raycaster::format::vol::{self, VolLayout};
-use raycaster::volume::{Grid, LinearVolume};
+use raycaster::volume::{AnyVolume, Grid};
 
 fn bin() -> Command {
     let mut c = Command::new(env!("CARGO_BIN_EXE_vol_app"));
@@ -19,7 +19,7 @@ fn bin() -> Command {
 /// A 24³ ball of value 200 in a linear `.vol` file.
 fn ball_file(dir: &TempDir, layout: VolLayout) -> PathBuf {
     let grid = Grid::new(UVec3::splat(24), Vec3::ONE);
-    let v = LinearVolume::from_fn(grid, |p| {
+    let v = AnyVolume::from_fn(grid, |p| {
         if (p.as_vec3() - Vec3::splat(11.5)).length() < 8.0 {
             200u8
         } else {
@@ -453,7 +453,6 @@ fn raw_options_read_headerless_files_in_either_order() {
 
 #[test]
 fn convert_round_trips_through_every_output_format() {
-    use raycaster::volume::Volume;
     let dir = TempDir::new("convert");
     let original = ball_file(&dir, VolLayout::Linear);
     let convert = |input: &PathBuf, output: &str, extra: &[&str]| {
@@ -493,13 +492,11 @@ fn convert_round_trips_through_every_output_format() {
     let (a, b) = (open(&original), open(&vol));
     assert_eq!(b.layout(), raycaster::volume::Layout::Bricked { side: 7 });
     let voxels = |v: &raycaster::volume::AnyVolume| -> Vec<f32> {
-        raycaster::dispatch_volume!(v, v => {
-            let d = v.grid().dims;
-            (0..d.x)
-                .flat_map(|x| (0..d.y).flat_map(move |y| (0..d.z).map(move |z| UVec3::new(x, y, z))))
-                .map(|p| raycaster::sample::Sample::to_f32(v.voxel(p)))
-                .collect()
-        })
+        let d = v.grid().dims;
+        (0..d.x)
+            .flat_map(|x| (0..d.y).flat_map(move |y| (0..d.z).map(move |z| UVec3::new(x, y, z))))
+            .map(|p| v.value(p))
+            .collect()
     };
     assert_eq!(voxels(&a), voxels(&b), "the chain changed the voxels");
     // Never overwrites without --force; a bad window or name is one line.

@@ -17,7 +17,7 @@ use raycaster::format::vol::{self, VolLayout};
 use raycaster::integrator::RenderMode;
 use raycaster::sample::SampleType;
 use raycaster::transfer::TransferFunction;
-use raycaster::volume::{Grid, LinearVolume};
+use raycaster::volume::{AnyVolume, Grid};
 use vol_app::viewer::state::{Mode, RendererChoice, ResolutionChoice, StepChoice};
 use vol_app::viewer::{Settings, StartOptions, ViewerApp};
 
@@ -31,7 +31,7 @@ fn volume_file(dir: &TempDir, name: &str, dims: UVec3, layout: VolLayout) -> Pat
     let c = (dims.as_vec3() - 1.0) * 0.5;
     let r = dims.min_element() as f32 * 0.4;
     let grid = Grid::new(dims, Vec3::ONE);
-    let v = LinearVolume::from_fn(grid, |p| {
+    let v = AnyVolume::from_fn(grid, |p| {
         let d = (p.as_vec3() - c).length();
         if d < r * 0.4 {
             200u8

@@ -117,10 +117,7 @@ impl Plan {
                 })
             }
             VolLayout::Bricked { side } => {
-                if side < 2 {
-                    return None;
-                }
-                let grid = BrickGrid::new(dims, side as u32);
+                let grid = BrickGrid::new(dims, side as u32).ok()?;
                 let total = grid.total_len()?;
                 let bricks = grid.brick_count()?;
                 let len = grid.brick_len();
@@ -371,7 +368,7 @@ mod tests {
                 }
             }
             VolLayout::Bricked { side } => {
-                let grid = BrickGrid::new(dims, side as u32);
+                let grid = BrickGrid::new(dims, side as u32).unwrap();
                 for (i, &v) in data.iter().enumerate() {
                     let want = grid
                         .voxel_at(i as u64, dims)

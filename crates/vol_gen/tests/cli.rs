@@ -7,9 +7,8 @@ use std::process::{Command, Output};
 use std::time::{Duration, Instant};
 
 use glam::UVec3;
-use raycaster::format::vol::{self, VolVolume};
+use raycaster::format::vol;
 use raycaster::storage::LoadMode;
-use raycaster::volume::Volume;
 
 const GENERATORS: [&str; 6] = ["shapes", "solid", "noise", "sphere", "sdf", "metaballs"];
 
@@ -90,16 +89,8 @@ fn voxels(path: &Path) -> (UVec3, Vec<u8>) {
         }
         out
     };
-    match v {
-        VolVolume::Linear(l) => {
-            let d = l.grid().dims;
-            (d, read(&|p| l.voxel(p), d))
-        }
-        VolVolume::Bricked(b) => {
-            let d = b.grid().dims;
-            (d, read(&|p| b.voxel(p), d))
-        }
-    }
+    let d = v.grid().dims;
+    (d, read(&|p| v.value(p) as u8, d))
 }
 
 #[test]

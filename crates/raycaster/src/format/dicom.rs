@@ -56,11 +56,11 @@ use dicom_object::{DefaultDicomObject, OpenFileOptions};
 use glam::{UVec3, Vec3};
 use rayon::prelude::*;
 
-use super::samples::{self, Decode, Endian, Rescale, SampleLayout};
+use super::samples::{self, Endian, Rescale, SampleLayout};
 use super::{FileFormat, Opened, VolumeInfo};
 use crate::error::{Error, FormatError, Result};
 use crate::sample::{Sample, SampleType};
-use crate::volume::{AnyVolume, AxisOrder, Grid, LinearVolume};
+use crate::volume::{AnyVolume, AxisOrder, Grid};
 
 /// Slices closer than this along the normal (mm) are at the same position.
 const SAME_POSITION_MM: f64 = 0.01;
@@ -808,18 +808,14 @@ fn build(
     };
     layout.validate(&first.path)?;
     let grid = Grid::new(dims, spacing);
-    let volume = match format.sample_type() {
-        SampleType::U8 => {
-            read_volume::<u8>(grid, &format, &slices, uniform, series_rescale, progress)
-        }
-        SampleType::I8 => {
-            read_volume::<i8>(grid, &format, &slices, uniform, series_rescale, progress)
-        }
-        SampleType::U16 => {
-            read_volume::<u16>(grid, &format, &slices, uniform, series_rescale, progress)
-        }
-        _ => read_volume::<i16>(grid, &format, &slices, uniform, series_rescale, progress),
-    }?;
+    let volume = format.sample_type().visit(ReadVolume {
+        grid,
+        format: &format,
+        slices: &slices,
+        uniform,
+        rescale: series_rescale,
+        progress,
+    })?;
 
     let mut info = VolumeInfo::new(
         FileFormat::Dicom,
@@ -862,50 +858,55 @@ fn file_name(p: &Path) -> String {
         .unwrap_or_else(|| p.display().to_string())
 }
 
-/// Stored sample types built from a (fixed) 8- or 16-bit word.
-trait Stored: Sample + Decode {
-    fn from_word(w: u16) -> Self;
+/// The sample built from a (fixed) 8- or 16-bit pixel word: its low byte
+/// for 8-bit types, the word for 16-bit ones.
+#[inline]
+fn from_word<S: Sample>(w: u16) -> S {
+    S::decode(
+        &[w.to_le_bytes()[0], w.to_le_bytes()[1], 0, 0],
+        Endian::Little,
+    )
 }
 
-impl Stored for u8 {
-    fn from_word(w: u16) -> Self {
-        w as u8
-    }
+/// Pass 2 with the Rust type of the stored samples.
+struct ReadVolume<'a> {
+    grid: Grid,
+    format: &'a PixelFormat,
+    slices: &'a [Slice<'a>],
+    uniform: bool,
+    rescale: Option<Rescale>,
+    progress: Option<&'a super::Progress>,
 }
-impl Stored for i8 {
-    fn from_word(w: u16) -> Self {
-        w as u8 as i8
-    }
-}
-impl Stored for u16 {
-    fn from_word(w: u16) -> Self {
-        w
-    }
-}
-impl Stored for i16 {
-    fn from_word(w: u16) -> Self {
-        w as i16
+
+impl crate::sample::SampleTypeVisitor for ReadVolume<'_> {
+    type Output = Result<AnyVolume>;
+    fn visit<S: Sample>(self) -> Result<AnyVolume> {
+        read_volume::<S>(
+            self.grid,
+            self.format,
+            self.slices,
+            self.uniform,
+            self.rescale,
+            self.progress,
+        )
     }
 }
 
 /// Pass 2: reads every slice's pixel data (in parallel) into one x-fast
 /// array and builds the volume.
-fn read_volume<S: Stored>(
+fn read_volume<S: Sample>(
     grid: Grid,
     format: &PixelFormat,
     slices: &[Slice],
     uniform: bool,
     rescale: Option<Rescale>,
     progress: Option<&super::Progress>,
-) -> Result<AnyVolume>
-where
-    AnyVolume: From<LinearVolume<S>>,
-{
+) -> Result<AnyVolume> {
     let per_slice = format.pixels();
     let total = per_slice
         .checked_mul(slices.len())
         .ok_or_else(|| invalid(slices[0].header, "series too large for this machine".into()))?;
-    let mut data = vec![S::from_word(0); total];
+    let mut data = vec![S::zeroed(); total];
     let read = std::sync::atomic::AtomicUsize::new(0);
     data.par_chunks_mut(per_slice)
         .zip(slices.par_iter())
@@ -929,7 +930,7 @@ where
 }
 
 /// Reads one slice's native pixel data into `out` (rows × columns samples).
-fn read_slice<S: Stored>(slice: &Slice, format: &PixelFormat, out: &mut [S]) -> Result<()> {
+fn read_slice<S: Sample>(slice: &Slice, format: &PixelFormat, out: &mut [S]) -> Result<()> {
     let h = slice.header;
     let obj = OpenFileOptions::new()
         .read_to(tags::PIXEL_DATA)
@@ -964,7 +965,7 @@ fn read_slice<S: Stored>(slice: &Slice, format: &PixelFormat, out: &mut [S]) -> 
     };
     let put = |out: &mut [S], words: &mut dyn Iterator<Item = u16>| {
         for (o, w) in out.iter_mut().zip(words) {
-            *o = S::from_word(format.fix(w));
+            *o = from_word::<S>(format.fix(w));
         }
     };
     match (prim, format.bits_allocated) {
@@ -1283,7 +1284,16 @@ mod tests {
     }
 
     fn samples_f32(v: &AnyVolume) -> Vec<f32> {
-        crate::dispatch_volume!(v, v => v.samples().iter().map(|s| s.to_f32()).collect())
+        let d = v.grid().dims;
+        let mut out = Vec::new();
+        for z in 0..d.z {
+            for y in 0..d.y {
+                for x in 0..d.x {
+                    out.push(v.value(glam::UVec3::new(x, y, z)));
+                }
+            }
+        }
+        out
     }
 
     /// Files written in reverse position order under increasing names, with

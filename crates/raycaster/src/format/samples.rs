@@ -12,35 +12,10 @@ use std::path::Path;
 use glam::{UVec3, Vec3};
 
 use crate::error::{Error, FormatError, Result};
-use crate::sample::{Sample, SampleType};
+pub use crate::sample::Endian;
+use crate::sample::{Sample, SampleType, SampleTypeVisitor};
 use crate::storage::{LoadMode, Storage};
-use crate::volume::{AnyVolume, AxisOrder, Grid, LinearVolume};
-
-/// Byte order of multi-byte samples.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
-pub enum Endian {
-    /// Least significant byte first (x86, ARM).
-    Little,
-    /// Most significant byte first.
-    Big,
-}
-
-impl Endian {
-    /// The byte order of this machine.
-    pub const NATIVE: Endian = if cfg!(target_endian = "little") {
-        Endian::Little
-    } else {
-        Endian::Big
-    };
-
-    /// `"little"` or `"big"`.
-    pub fn name(self) -> &'static str {
-        match self {
-            Endian::Little => "little",
-            Endian::Big => "big",
-        }
-    }
-}
+use crate::volume::{AnyVolume, AxisOrder, Grid};
 
 /// `value = stored·slope + intercept` (NIfTI `scl_slope`/`scl_inter`, DICOM
 /// Rescale Slope/Intercept).
@@ -174,20 +149,19 @@ pub fn from_file(
             },
         ));
     }
-    let count = usize::try_from(bytes / layout.sample.size() as u64).map_err(|_| {
-        Error::InvalidArgument(format!("{}: too large for this machine", path.display()))
-    })?;
+    let count =
+        usize::try_from(bytes / layout.sample.size() as u64).map_err(|_| Error::TooLarge {
+            path: path.to_path_buf(),
+            what: "sample count".into(),
+        })?;
     if !layout.needs_conversion(rescale) {
-        return dispatch_type(
-            layout.sample,
-            MapVisitor {
-                path,
-                offset,
-                count,
-                mode,
-                layout,
-            },
-        );
+        return layout.sample.visit(MapVisitor {
+            path,
+            offset,
+            count,
+            mode,
+            layout,
+        });
     }
     use std::io::{Seek, SeekFrom};
     let mut file = std::fs::File::open(path).map_err(|e| Error::io(path, e))?;
@@ -262,28 +236,14 @@ pub fn from_reader(
         ));
     }
     let reader: &mut dyn std::io::Read = &mut reader;
-    dispatch_type(
-        layout.sample,
-        ReadVisitor {
-            path,
-            reader,
-            layout,
-            rescale,
-            stream,
-            describe: &describe,
-        },
-    )
-}
-
-/// Builds a volume in RAM from the sample bytes `bytes` (exactly as the file
-/// stores them, e.g. after gunzip); extra bytes at the end are ignored.
-pub fn from_bytes(
-    path: &Path,
-    bytes: &[u8],
-    layout: &SampleLayout,
-    rescale: Option<Rescale>,
-) -> Result<AnyVolume> {
-    from_reader(path, bytes, layout, rescale, Stream::default())
+    layout.sample.visit(ReadVisitor {
+        path,
+        reader,
+        layout,
+        rescale,
+        stream,
+        describe: &describe,
+    })
 }
 
 /// Builds a volume in RAM from typed samples in `order`, applying `rescale`.
@@ -292,12 +252,9 @@ pub fn from_samples<S: Sample>(
     samples: Vec<S>,
     order: AxisOrder,
     rescale: Option<Rescale>,
-) -> Result<AnyVolume>
-where
-    AnyVolume: From<LinearVolume<S>>,
-{
+) -> Result<AnyVolume> {
     match rescale {
-        None => Ok(LinearVolume::with_order(grid, Storage::from_vec(samples), order)?.into()),
+        None => AnyVolume::linear(grid, Storage::from_vec(samples), order),
         Some(r) => rescaled(grid, samples, order, r),
     }
 }
@@ -325,10 +282,10 @@ fn rescaled<S: Sample>(
     {
         let (m, c) = (r.slope as i32, r.intercept as i32);
         let v = convert(samples, |s| (s.to_f32() as i32 * m + c) as i16);
-        return Ok(LinearVolume::with_order(grid, Storage::from_vec(v), order)?.into());
+        return AnyVolume::linear(grid, Storage::from_vec(v), order);
     }
     let v = convert(samples, |s| r.apply(s.to_f32() as f64) as f32);
-    Ok(LinearVolume::with_order(grid, Storage::from_vec(v), order)?.into())
+    AnyVolume::linear(grid, Storage::from_vec(v), order)
 }
 
 /// `samples` mapped by `f`, in place when the two types have the same size
@@ -355,56 +312,6 @@ fn convert<S: Sample, T: Sample>(mut samples: Vec<S>, f: impl Fn(S) -> T) -> Vec
     samples.into_iter().map(f).collect()
 }
 
-/// Sample types that can be decoded from (and encoded to) bytes in either
-/// byte order.
-pub trait Decode: Sample {
-    /// The value from its `size_of::<Self>()` bytes in `endian` order.
-    fn decode(bytes: &[u8], endian: Endian) -> Self;
-    /// Appends the value's bytes in `endian` order to `out`.
-    fn encode(self, endian: Endian, out: &mut Vec<u8>);
-}
-
-macro_rules! impl_decode {
-    ($($t:ty),*) => {$(
-        impl Decode for $t {
-            #[inline]
-            fn decode(bytes: &[u8], endian: Endian) -> Self {
-                let mut a = [0u8; std::mem::size_of::<$t>()];
-                a.copy_from_slice(&bytes[..std::mem::size_of::<$t>()]);
-                match endian {
-                    Endian::Little => <$t>::from_le_bytes(a),
-                    Endian::Big => <$t>::from_be_bytes(a),
-                }
-            }
-            #[inline]
-            fn encode(self, endian: Endian, out: &mut Vec<u8>) {
-                match endian {
-                    Endian::Little => out.extend_from_slice(&self.to_le_bytes()),
-                    Endian::Big => out.extend_from_slice(&self.to_be_bytes()),
-                }
-            }
-        }
-    )*};
-}
-impl_decode!(u8, i8, u16, i16, f32);
-
-/// Code run with the Rust type of a [`SampleType`].
-trait TypeVisitor {
-    fn visit<S: Sample + Decode>(self) -> Result<AnyVolume>
-    where
-        AnyVolume: From<LinearVolume<S>>;
-}
-
-fn dispatch_type(t: SampleType, v: impl TypeVisitor) -> Result<AnyVolume> {
-    match t {
-        SampleType::U8 => v.visit::<u8>(),
-        SampleType::I8 => v.visit::<i8>(),
-        SampleType::U16 => v.visit::<u16>(),
-        SampleType::I16 => v.visit::<i16>(),
-        SampleType::F32 => v.visit::<f32>(),
-    }
-}
-
 struct MapVisitor<'a> {
     path: &'a Path,
     offset: u64,
@@ -413,13 +320,11 @@ struct MapVisitor<'a> {
     layout: &'a SampleLayout,
 }
 
-impl TypeVisitor for MapVisitor<'_> {
-    fn visit<S: Sample + Decode>(self) -> Result<AnyVolume>
-    where
-        AnyVolume: From<LinearVolume<S>>,
-    {
-        let storage = Storage::<S>::open(self.path, self.offset, self.count, self.mode)?;
-        Ok(LinearVolume::with_order(self.layout.grid(), storage, self.layout.order)?.into())
+impl SampleTypeVisitor for MapVisitor<'_> {
+    type Output = Result<AnyVolume>;
+    fn visit<S: Sample>(self) -> Result<AnyVolume> {
+        let storage = Storage::open(self.path, self.offset, S::TYPE, self.count, self.mode)?;
+        AnyVolume::linear(self.layout.grid(), storage, self.layout.order)
     }
 }
 
@@ -432,15 +337,16 @@ struct ReadVisitor<'a> {
     describe: &'a dyn Fn() -> String,
 }
 
-impl TypeVisitor for ReadVisitor<'_> {
-    fn visit<S: Sample + Decode>(self) -> Result<AnyVolume>
-    where
-        AnyVolume: From<LinearVolume<S>>,
-    {
+impl SampleTypeVisitor for ReadVisitor<'_> {
+    type Output = Result<AnyVolume>;
+    fn visit<S: Sample>(self) -> Result<AnyVolume> {
         let path = self.path;
         let count =
             usize::try_from(self.layout.dims.as_u64vec3().element_product()).map_err(|_| {
-                Error::InvalidArgument(format!("{}: too large for this machine", path.display()))
+                Error::TooLarge {
+                    path: path.to_path_buf(),
+                    what: "sample count".into(),
+                }
             })?;
         let mut samples = vec![S::zeroed(); count];
         let buf: &mut [u8] = bytemuck::cast_slice_mut(&mut samples);
@@ -510,36 +416,37 @@ pub fn write_samples(
     order: AxisOrder,
     endian: Endian,
 ) -> std::io::Result<()> {
-    fn go<V: crate::volume::Volume>(
-        w: &mut dyn std::io::Write,
-        v: &V,
+    struct Write<'w> {
+        w: &'w mut dyn std::io::Write,
         order: AxisOrder,
         endian: Endian,
-    ) -> std::io::Result<()>
-    where
-        V::Sample: Decode,
-    {
-        let d = v.grid().dims;
-        // Rows run along the fastest axis: x for x-fast, z for z-fast; `a`
-        // counts the slowest axis and `b` counts y.
-        let (row_axis, n_outer, row_start): (UVec3, u32, fn(u32, u32) -> UVec3) = match order {
-            AxisOrder::XFast => (UVec3::X, d.z, |a, b| UVec3::new(0, b, a)),
-            AxisOrder::ZFast => (UVec3::Z, d.x, |a, b| UVec3::new(a, b, 0)),
-        };
-        let n_middle = d.y;
-        let row_len = (d * row_axis).max_element();
-        let mut buf = Vec::with_capacity(row_len as usize * V::Sample::TYPE.size());
-        for a in 0..n_outer {
-            for b in 0..n_middle {
-                buf.clear();
-                let start = row_start(a, b);
-                for c in 0..row_len {
-                    v.voxel(start + row_axis * c).encode(endian, &mut buf);
-                }
-                w.write_all(&buf)?;
-            }
-        }
-        Ok(())
     }
-    crate::dispatch_volume!(volume, v => go(w, v, order, endian))
+    impl crate::volume::VolumeVisitor for Write<'_> {
+        type Output = std::io::Result<()>;
+        fn visit<V: crate::volume::Volume>(self, v: &V) -> std::io::Result<()> {
+            let Write { w, order, endian } = self;
+            let d = v.grid().dims;
+            // Rows run along the fastest axis: x for x-fast, z for z-fast; `a`
+            // counts the slowest axis and `b` counts y.
+            let (row_axis, n_outer, row_start): (UVec3, u32, fn(u32, u32) -> UVec3) = match order {
+                AxisOrder::XFast => (UVec3::X, d.z, |a, b| UVec3::new(0, b, a)),
+                AxisOrder::ZFast => (UVec3::Z, d.x, |a, b| UVec3::new(a, b, 0)),
+            };
+            let n_middle = d.y;
+            let row_len = (d * row_axis).max_element();
+            let mut buf = Vec::with_capacity(row_len as usize * V::Sample::TYPE.size());
+            for a in 0..n_outer {
+                for b in 0..n_middle {
+                    buf.clear();
+                    let start = row_start(a, b);
+                    for c in 0..row_len {
+                        v.voxel(start + row_axis * c).encode(endian, &mut buf);
+                    }
+                    w.write_all(&buf)?;
+                }
+            }
+            Ok(())
+        }
+    }
+    volume.visit(Write { w, order, endian })
 }

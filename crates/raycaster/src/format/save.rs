@@ -12,7 +12,7 @@ use super::samples::{Endian, write_samples};
 use super::vol::VolLayout;
 use crate::error::{Error, Result};
 use crate::sample::{Sample, SampleType};
-use crate::volume::{AnyVolume, AxisOrder, LinearVolume, Volume};
+use crate::volume::{AnyVolume, AxisOrder, Volume, VolumeVisitor};
 
 /// The formats [`save`] writes.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -115,15 +115,20 @@ pub fn save(path: &Path, volume: &AnyVolume, options: &SaveOptions) -> Result<Ou
 
 /// Smallest and largest voxel value.
 fn value_range(volume: &AnyVolume) -> (f32, f32) {
-    crate::dispatch_volume!(volume, v => {
-        let (lo, hi) = v.value_range(UVec3::ZERO, v.grid().dims - UVec3::ONE);
-        (lo.to_f32(), hi.to_f32())
-    })
+    struct Range;
+    impl VolumeVisitor for Range {
+        type Output = (f32, f32);
+        fn visit<V: Volume>(self, v: &V) -> (f32, f32) {
+            let (lo, hi) = v.value_range(UVec3::ZERO, v.grid().dims - UVec3::ONE);
+            (lo.to_f32(), hi.to_f32())
+        }
+    }
+    volume.visit(Range)
 }
 
 /// The volume as 8-bit samples: `window.0` → 0, `window.1` → 255, rounded
 /// and clamped (u8 data with the window 0..255 stays as it is).
-fn to_u8(volume: &AnyVolume, window: (f32, f32)) -> Result<LinearVolume<u8>> {
+fn to_u8(volume: &AnyVolume, window: (f32, f32)) -> Result<AnyVolume> {
     let (lo, hi) = window;
     if !(lo.is_finite() && hi.is_finite()) {
         return Err(Error::InvalidArgument(format!(
@@ -131,11 +136,19 @@ fn to_u8(volume: &AnyVolume, window: (f32, f32)) -> Result<LinearVolume<u8>> {
         )));
     }
     let scale = if hi > lo { 255.0 / (hi - lo) } else { 0.0 };
-    Ok(crate::dispatch_volume!(volume, v => {
-        LinearVolume::from_fn(*v.grid(), |p| {
-            ((v.voxel(p).to_f32() - lo) * scale).round().clamp(0.0, 255.0) as u8
-        })
-    }))
+    struct Window(f32, f32);
+    impl VolumeVisitor for Window {
+        type Output = AnyVolume;
+        fn visit<V: Volume>(self, v: &V) -> AnyVolume {
+            let Window(lo, scale) = self;
+            AnyVolume::from_fn(*v.grid(), |p| {
+                ((v.voxel(p).to_f32() - lo) * scale)
+                    .round()
+                    .clamp(0.0, 255.0) as u8
+            })
+        }
+    }
+    Ok(volume.visit(Window(lo, scale)))
 }
 
 #[cfg(test)]
@@ -148,14 +161,17 @@ mod tests {
     fn vol_output_maps_the_window_to_eight_bits() {
         let grid = Grid::new(UVec3::new(3, 1, 1), Vec3::ONE);
         let values = [-1000i16, 0, 1000];
-        let v: AnyVolume = LinearVolume::from_fn(grid, |p| values[p.x as usize]).into();
+        let v = AnyVolume::from_fn(grid, |p| values[p.x as usize]);
         let eight = to_u8(&v, (-1000.0, 1000.0)).unwrap();
-        assert_eq!(eight.samples(), &[0, 128, 255]);
+        assert_eq!(eight.samples::<u8>(), Some(&[0, 128, 255][..]));
         let clamped = to_u8(&v, (-500.0, 500.0)).unwrap();
-        assert_eq!(clamped.samples(), &[0, 128, 255]);
+        assert_eq!(clamped.samples::<u8>(), Some(&[0, 128, 255][..]));
         assert_eq!(value_range(&v), (-1000.0, 1000.0));
-        let u8v: AnyVolume = LinearVolume::from_fn(grid, |p| [3u8, 7, 250][p.x as usize]).into();
-        assert_eq!(to_u8(&u8v, (0.0, 255.0)).unwrap().samples(), &[3, 7, 250]);
+        let u8v = AnyVolume::from_fn(grid, |p| [3u8, 7, 250][p.x as usize]);
+        assert_eq!(
+            to_u8(&u8v, (0.0, 255.0)).unwrap().samples::<u8>(),
+            Some(&[3, 7, 250][..])
+        );
     }
 
     #[test]

@@ -9,8 +9,9 @@ use nom::Parser;
 use nom::number::complete::{le_f32, le_u32, u8 as byte};
 
 use crate::error::{Error, FormatError, Result};
+use crate::sample::SampleType;
 use crate::storage::{LoadMode, Storage};
-use crate::volume::{BrickGrid, BrickedVolume, Grid, LinearVolume, Volume};
+use crate::volume::{AnyVolume, AxisOrder, BrickGrid, Grid, Volume, VolumeVisitor};
 
 /// Header length in bytes.
 pub const HEADER_LEN: usize = 26;
@@ -132,6 +133,7 @@ impl VolHeader {
                     .ok_or(overflow)
             }
             VolLayout::Bricked { side } => BrickGrid::new(self.dims, side as u32)
+                .map_err(|_| FormatError::BadBrickSize(side))?
                 .total_len()
                 .ok_or(overflow),
         }
@@ -154,7 +156,7 @@ impl VolHeader {
         match self.layout {
             VolLayout::Linear => format!("26-byte header + {}x{}x{} samples", d.x, d.y, d.z),
             VolLayout::Bricked { side } => {
-                let n = BrickGrid::new(d, side as u32).count;
+                let n = BrickGrid::new(d, side as u32).map_or(UVec3::ZERO, |b| b.count);
                 format!(
                     "26-byte header + {}x{}x{} bricks of {side}^3 samples",
                     n.x, n.y, n.z
@@ -194,33 +196,23 @@ pub fn read_header(path: &Path) -> Result<VolHeader> {
     Ok(header)
 }
 
-/// A `.vol` volume in whichever layout the file has.
-#[derive(Debug)]
-pub enum VolVolume {
-    /// Linear layout.
-    Linear(LinearVolume<u8>),
-    /// Bricked layout.
-    Bricked(BrickedVolume<u8>),
-}
-
 /// Opens a `.vol` file, mapped or read into RAM.
-pub fn open(path: &Path, mode: LoadMode) -> Result<VolVolume> {
+pub fn open(path: &Path, mode: LoadMode) -> Result<AnyVolume> {
     open_read_header(path, mode).map(|(volume, _)| volume)
 }
 
 /// [`open`], also returning the header it read.
-fn open_read_header(path: &Path, mode: LoadMode) -> Result<(VolVolume, VolHeader)> {
+fn open_read_header(path: &Path, mode: LoadMode) -> Result<(AnyVolume, VolHeader)> {
     let header = read_header(path)?;
     let count = header.sample_count().map_err(|k| Error::format(path, k))?;
-    let count = usize::try_from(count).map_err(|_| {
-        Error::InvalidArgument(format!("{}: too large for this machine", path.display()))
+    let count = usize::try_from(count).map_err(|_| Error::TooLarge {
+        path: path.to_path_buf(),
+        what: format!("{count} samples"),
     })?;
-    let storage = Storage::<u8>::open(path, HEADER_LEN as u64, count, mode)?;
+    let storage = Storage::open(path, HEADER_LEN as u64, SampleType::U8, count, mode)?;
     let volume = match header.layout {
-        VolLayout::Linear => VolVolume::Linear(LinearVolume::new(header.grid(), storage)?),
-        VolLayout::Bricked { side } => {
-            VolVolume::Bricked(BrickedVolume::new(header.grid(), side as u32, storage)?)
-        }
+        VolLayout::Linear => AnyVolume::linear(header.grid(), storage, AxisOrder::ZFast)?,
+        VolLayout::Bricked { side } => AnyVolume::bricked(header.grid(), side as u32, storage)?,
     };
     Ok((volume, header))
 }
@@ -250,53 +242,73 @@ pub fn open_with_info(path: &Path, mode: LoadMode) -> Result<super::Opened> {
         &encoding,
         header.file_len().unwrap_or(0),
     );
-    let volume = match volume {
-        VolVolume::Linear(v) => v.into(),
-        VolVolume::Bricked(v) => v.into(),
-    };
     Ok(super::Opened { volume, info })
 }
 
 /// Writes `volume` to `path` in `layout`. The file is written under a
 /// temporary name in the same directory and renamed when complete, so a
 /// reader never sees a partial file.
-pub fn write<V: Volume<Sample = u8>>(path: &Path, volume: &V, layout: VolLayout) -> Result<()> {
+pub fn write(path: &Path, volume: &AnyVolume, layout: VolLayout) -> Result<()> {
+    if volume.sample_type() != SampleType::U8 {
+        return Err(Error::InvalidVolume(format!(
+            "{}: .vol holds u8 samples, not {}",
+            path.display(),
+            volume.sample_type()
+        )));
+    }
     let grid = volume.grid();
     let header = VolHeader {
         dims: grid.dims,
         spacing: grid.spacing,
         layout,
     };
-    let d = grid.dims;
-    write_atomically(path, |w| {
-        w.write_all(&header.to_bytes())?;
-        match layout {
-            VolLayout::Linear => {
-                let mut row = Vec::with_capacity(d.z as usize);
-                for x in 0..d.x {
-                    for y in 0..d.y {
-                        row.clear();
-                        row.extend((0..d.z).map(|z| volume.voxel(UVec3::new(x, y, z))));
-                        w.write_all(&row)?;
+    let bricks = match layout {
+        VolLayout::Linear => None,
+        VolLayout::Bricked { side } => Some(
+            BrickGrid::new(grid.dims, side as u32)
+                .map_err(|_| Error::format(path, FormatError::BadBrickSize(side)))?,
+        ),
+    };
+    struct Samples<'w, W> {
+        w: &'w mut W,
+        bricks: Option<BrickGrid>,
+    }
+    impl<W: Write> VolumeVisitor for Samples<'_, W> {
+        type Output = std::io::Result<()>;
+        fn visit<V: Volume>(self, volume: &V) -> std::io::Result<()> {
+            use crate::sample::Sample;
+            let byte = |v: UVec3| volume.voxel(v).to_f32() as u8;
+            let d = volume.grid().dims;
+            match self.bricks {
+                None => {
+                    let mut row = Vec::with_capacity(d.z as usize);
+                    for x in 0..d.x {
+                        for y in 0..d.y {
+                            row.clear();
+                            row.extend((0..d.z).map(|z| byte(UVec3::new(x, y, z))));
+                            self.w.write_all(&row)?;
+                        }
+                    }
+                }
+                Some(bricks) => {
+                    let len = bricks.brick_len();
+                    let total = bricks.total_len().unwrap_or(0);
+                    let mut buf = Vec::with_capacity(len as usize);
+                    for b in 0..total / len {
+                        buf.clear();
+                        buf.extend(
+                            (b * len..(b + 1) * len).map(|i| bricks.voxel_at(i, d).map_or(0, byte)),
+                        );
+                        self.w.write_all(&buf)?;
                     }
                 }
             }
-            VolLayout::Bricked { side } => {
-                let bricks = BrickGrid::new(d, side as u32);
-                let len = bricks.brick_len();
-                let total = bricks.total_len().unwrap_or(0);
-                let mut buf = Vec::with_capacity(len as usize);
-                for b in 0..total / len {
-                    buf.clear();
-                    buf.extend(
-                        (b * len..(b + 1) * len)
-                            .map(|i| bricks.voxel_at(i, d).map_or(0, |v| volume.voxel(v))),
-                    );
-                    w.write_all(&buf)?;
-                }
-            }
+            Ok(())
         }
-        Ok(())
+    }
+    write_atomically(path, |w| {
+        w.write_all(&header.to_bytes())?;
+        volume.visit(Samples { w, bricks })
     })
 }
 

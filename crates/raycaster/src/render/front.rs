@@ -32,10 +32,10 @@
 //! use raycaster::prelude::*;
 //!
 //! let grid = Grid::new(UVec3::splat(32), Vec3::ONE);
-//! let volume = LinearVolume::from_fn(grid, |v| {
+//! let volume = AnyVolume::from_fn(grid, |v| {
 //!     if (v.as_vec3() - Vec3::splat(15.5)).length() < 10.0 { 200u8 } else { 0 }
 //! });
-//! let scene = Arc::new(Scene::new(AnyVolume::from(volume)));
+//! let scene = Arc::new(Scene::new(volume));
 //! let renderer = AnyRenderer::new(RendererKind::Object, 2)?;
 //! let front = RendererFront::spawn(renderer, scene.clone(), FrontOptions::default())?;
 //!
@@ -78,9 +78,9 @@ use super::{
 };
 use crate::camera::Camera;
 use crate::error::{Error, Result};
-use crate::scene::{Scene, VolumeSource};
+use crate::scene::Scene;
 use crate::transfer::TransferFunction;
-use crate::volume::{AnyVolume, Grid};
+use crate::volume::Grid;
 
 /// The renderers of this crate, by name.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, Default)]
@@ -177,9 +177,9 @@ impl Renderer for AnyRenderer {
         }
     }
 
-    fn render_cancellable<V: VolumeSource>(
+    fn render_cancellable(
         &mut self,
-        scene: &Scene<V>,
+        scene: &Scene,
         camera: &Camera,
         tf: &TransferFunction,
         options: &RenderOptions,
@@ -307,9 +307,9 @@ impl std::fmt::Debug for FrontOptions {
 /// are dropped (the shared buffer still holds the latest frame).
 const EVENT_BACKLOG: usize = 256;
 
-enum Command<V> {
+enum Command {
     Render { id: u64, request: Box<FrameRequest> },
-    SetScene(Arc<Scene<V>>),
+    SetScene(Arc<Scene>),
     Shutdown,
 }
 
@@ -317,8 +317,8 @@ enum Command<V> {
 type FrameSlot = Arc<Mutex<Option<(u64, Frame)>>>;
 
 /// A renderer running on its own thread (see the [module docs](crate::render::front)).
-pub struct RendererFront<V: VolumeSource + 'static = AnyVolume> {
-    commands: Sender<Command<V>>,
+pub struct RendererFront {
+    commands: Sender<Command>,
     generation: Arc<AtomicU64>,
     slot: FrameSlot,
     events: Receiver<FrontEvent>,
@@ -327,7 +327,7 @@ pub struct RendererFront<V: VolumeSource + 'static = AnyVolume> {
     threads: usize,
 }
 
-impl<V: VolumeSource + 'static> std::fmt::Debug for RendererFront<V> {
+impl std::fmt::Debug for RendererFront {
     fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
         f.debug_struct("RendererFront")
             .field("renderer", &self.name)
@@ -337,11 +337,11 @@ impl<V: VolumeSource + 'static> std::fmt::Debug for RendererFront<V> {
     }
 }
 
-impl<V: VolumeSource + 'static> RendererFront<V> {
+impl RendererFront {
     /// Starts `renderer` on a new thread, rendering `scene`.
     pub fn spawn<R: Renderer + 'static>(
         renderer: R,
-        scene: Arc<Scene<V>>,
+        scene: Arc<Scene>,
         options: FrontOptions,
     ) -> Result<Self> {
         let (commands, command_rx) = crossbeam_channel::unbounded();
@@ -394,7 +394,7 @@ impl<V: VolumeSource + 'static> RendererFront<V> {
 
     /// Renders `scene` from the next request on; cancels the frame in
     /// progress.
-    pub fn set_scene(&self, scene: Arc<Scene<V>>) {
+    pub fn set_scene(&self, scene: Arc<Scene>) {
         self.generation.fetch_add(1, Ordering::AcqRel);
         let _ = self.commands.send(Command::SetScene(scene));
     }
@@ -443,24 +443,24 @@ impl<V: VolumeSource + 'static> RendererFront<V> {
     }
 }
 
-impl<V: VolumeSource + 'static> Drop for RendererFront<V> {
+impl Drop for RendererFront {
     fn drop(&mut self) {
         self.stop();
     }
 }
 
 /// The render thread's state.
-struct Worker<R, V> {
+struct Worker<R> {
     renderer: R,
-    scene: Arc<Scene<V>>,
-    commands: Receiver<Command<V>>,
+    scene: Arc<Scene>,
+    commands: Receiver<Command>,
     events: Sender<FrontEvent>,
     generation: Arc<AtomicU64>,
     slot: FrameSlot,
     wake: Option<WakeFn>,
 }
 
-impl<R: Renderer, V: VolumeSource> Worker<R, V> {
+impl<R: Renderer> Worker<R> {
     fn run(mut self) {
         // Ends on `Shutdown` or when the front is gone.
         while let Ok(first) = self.commands.recv() {

@@ -45,7 +45,7 @@ use std::sync::atomic::{AtomicBool, AtomicU64, Ordering};
 
 use crate::camera::Camera;
 use crate::error::Result;
-use crate::scene::{Scene, VolumeSource};
+use crate::scene::Scene;
 use crate::transfer::TransferFunction;
 
 /// A renderer: turns a scene, camera, TF and options into a frame.
@@ -62,9 +62,9 @@ pub trait Renderer: Send {
     /// did. The renderers of this crate check `cancel` between pieces of work
     /// (tiles, tasks), so a superseded frame stops within one piece; a
     /// renderer that cannot stop midway may check it only at the start.
-    fn render_cancellable<V: VolumeSource>(
+    fn render_cancellable(
         &mut self,
-        scene: &Scene<V>,
+        scene: &Scene,
         camera: &Camera,
         tf: &TransferFunction,
         options: &RenderOptions,
@@ -72,9 +72,9 @@ pub trait Renderer: Send {
     ) -> Result<Option<Frame>>;
 
     /// Renders one frame.
-    fn render<V: VolumeSource>(
+    fn render(
         &mut self,
-        scene: &Scene<V>,
+        scene: &Scene,
         camera: &Camera,
         tf: &TransferFunction,
         options: &RenderOptions,

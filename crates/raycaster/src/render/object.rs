@@ -110,8 +110,9 @@ use crate::camera::{Camera, CameraFrame, PixelRect, Projection};
 use crate::error::{Error, Result};
 use crate::geometry::Aabb;
 use crate::integrator::{FrameContext, RaySegment, RayState, RenderMode};
-use crate::scene::{Scene, VolumeSource, VolumeVisitor};
+use crate::scene::Scene;
 use crate::transfer::{TfLut, TransferFunction};
+use crate::volume::VolumeVisitor;
 use crate::volume::{Grid, Layout, Volume};
 
 /// Options of the object-parallel renderer.
@@ -252,14 +253,14 @@ impl ObjectRenderer {
     }
 
     /// The visible bricks for this scene, TF and mode (cached).
-    fn brick_set<V: VolumeSource>(
+    fn brick_set(
         &mut self,
-        scene: &Scene<V>,
+        scene: &Scene,
         prepared: &Arc<(TfLut, SkipGrid)>,
         options: &RenderOptions,
     ) -> Arc<BrickSet> {
         let side = self.config.brick_side(
-            scene.volume().accept(LayoutOf),
+            scene.volume().visit(LayoutOf),
             options.mode,
             scene.grid().dims,
         );
@@ -1098,9 +1099,9 @@ impl Renderer for ObjectRenderer {
         self.config.render_threads + self.config.composite_threads
     }
 
-    fn render_cancellable<V: VolumeSource>(
+    fn render_cancellable(
         &mut self,
-        scene: &Scene<V>,
+        scene: &Scene,
         camera: &Camera,
         tf: &TransferFunction,
         options: &RenderOptions,
@@ -1122,7 +1123,7 @@ impl Renderer for ObjectRenderer {
             composite_threads: self.config.composite_threads,
             order: self.config.order,
         };
-        let Some((tiles, samples)) = scene.volume().accept(pass) else {
+        let Some((tiles, samples)) = scene.volume().visit(pass) else {
             return Ok(None);
         };
         let bg_rgb = FramePlan::background_rgb(options.background);

@@ -78,9 +78,9 @@ pub struct PlanCache {
 
 impl PlanCache {
     /// The LUT and skip grid for this scene, TF, step and mode.
-    pub(crate) fn get<V: crate::scene::VolumeSource>(
+    pub(crate) fn get(
         &mut self,
-        scene: &Scene<V>,
+        scene: &Scene,
         tf: &TransferFunction,
         step: f32,
         options: &RenderOptions,
@@ -125,9 +125,9 @@ pub(crate) struct FramePlan {
 }
 
 impl FramePlan {
-    pub fn new<V: crate::scene::VolumeSource>(
+    pub fn new(
         cache: &mut PlanCache,
-        scene: &Scene<V>,
+        scene: &Scene,
         grid: &Grid,
         camera: &Camera,
         tf: &TransferFunction,

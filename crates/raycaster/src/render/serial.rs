@@ -6,9 +6,10 @@ use super::plan::{FramePlan, PlanCache, RenderOptions, render_pixel};
 use super::{Cancel, Frame, FrameStats, Renderer};
 use crate::camera::Camera;
 use crate::error::Result;
-use crate::scene::{Scene, VolumeSource, VolumeVisitor};
+use crate::scene::Scene;
 use crate::transfer::TransferFunction;
 use crate::volume::Volume;
+use crate::volume::VolumeVisitor;
 
 /// One thread, pixel by pixel: the reference the parallel renderers match.
 #[derive(Debug, Default)]
@@ -73,9 +74,9 @@ impl Renderer for SerialRenderer {
         1
     }
 
-    fn render_cancellable<V: VolumeSource>(
+    fn render_cancellable(
         &mut self,
-        scene: &Scene<V>,
+        scene: &Scene,
         camera: &Camera,
         tf: &TransferFunction,
         options: &RenderOptions,
@@ -83,7 +84,7 @@ impl Renderer for SerialRenderer {
     ) -> Result<Option<Frame>> {
         let start = Instant::now();
         let plan = FramePlan::new(&mut self.cache, scene, scene.grid(), camera, tf, options)?;
-        let Some((rgb, mut stats)) = scene.volume().accept(SerialPass {
+        let Some((rgb, mut stats)) = scene.volume().visit(SerialPass {
             plan: &plan,
             cells: scene.macrocells(),
             value_range: scene.value_range(),

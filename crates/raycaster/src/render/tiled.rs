@@ -9,9 +9,10 @@ use super::plan::{FramePlan, PlanCache, RenderOptions, render_pixel};
 use super::{Cancel, Frame, FrameStats, Renderer};
 use crate::camera::{Camera, PixelRect};
 use crate::error::{Error, Result};
-use crate::scene::{Scene, VolumeSource, VolumeVisitor};
+use crate::scene::Scene;
 use crate::transfer::TransferFunction;
 use crate::volume::Volume;
+use crate::volume::VolumeVisitor;
 
 /// Tiles on a rayon pool; work stealing balances tiles of unequal cost.
 pub struct TiledRenderer {
@@ -116,9 +117,9 @@ impl Renderer for TiledRenderer {
         self.threads
     }
 
-    fn render_cancellable<V: VolumeSource>(
+    fn render_cancellable(
         &mut self,
-        scene: &Scene<V>,
+        scene: &Scene,
         camera: &Camera,
         tf: &TransferFunction,
         options: &RenderOptions,
@@ -136,7 +137,7 @@ impl Renderer for TiledRenderer {
             tiles: &tiles,
             cancel,
         };
-        let results = self.pool.install(|| scene.volume().accept(pass));
+        let results = self.pool.install(|| scene.volume().visit(pass));
         if cancel.is_cancelled() {
             return Ok(None);
         }

@@ -1,101 +1,220 @@
-//! [`AnyVolume`]: a volume whose layout and sample type are known only at run
-//! time (after opening a file), with [`dispatch_volume!`](crate::dispatch_volume)
-//! to reach the concretely typed volume, so hot loops stay monomorphised.
+//! [`AnyVolume`]: a volume whose sample type and layout are known only at run
+//! time (after opening a file), and [`VolumeVisitor`], the one way to reach
+//! its concretely typed [`GridVolume`] so hot loops stay monomorphised.
 
-use super::{BrickedVolume, Grid, Layout, LinearVolume, Volume};
-use crate::sample::SampleType;
-use crate::storage::StorageKind;
+use glam::UVec3;
 
-macro_rules! any_volume {
-    ($($variant:ident => $ty:ty),* $(,)?) => {
-        /// A volume of any layout and sample type.
-        #[derive(Debug)]
-        pub enum AnyVolume {
-            $(
-                #[doc = concat!("`", stringify!($ty), "`")]
-                $variant($ty),
-            )*
-        }
+use super::addressing::{AnyAddressing, AxisOrder, BrickGrid, Bricked, Layout, Linear};
+use super::{Grid, GridVolume, Volume};
+use crate::error::{Error, Result};
+use crate::sample::{Sample, SampleType, SampleTypeVisitor};
+use crate::storage::{Storage, StorageKind};
 
-        $(
-            impl From<$ty> for AnyVolume {
-                fn from(v: $ty) -> Self {
-                    AnyVolume::$variant(v)
-                }
-            }
-        )*
-
-    };
+/// Code that runs on a concretely typed volume (a closure generic over the
+/// volume type), called by [`AnyVolume::visit`].
+pub trait VolumeVisitor {
+    /// What the visit returns.
+    type Output;
+    /// Runs on the volume.
+    fn visit<V: Volume>(self, volume: &V) -> Self::Output;
 }
 
-any_volume! {
-    LinearU8 => LinearVolume<u8>,
-    LinearI8 => LinearVolume<i8>,
-    LinearU16 => LinearVolume<u16>,
-    LinearI16 => LinearVolume<i16>,
-    LinearF32 => LinearVolume<f32>,
-    BrickedU8 => BrickedVolume<u8>,
-    BrickedI8 => BrickedVolume<i8>,
-    BrickedU16 => BrickedVolume<u16>,
-    BrickedI16 => BrickedVolume<i16>,
-    BrickedF32 => BrickedVolume<f32>,
-}
-
-/// Runs `$body` with `$v` bound to the concretely typed volume inside an
-/// [`AnyVolume`](crate::volume::AnyVolume): one monomorphised copy of `$body`
-/// per layout and sample type.
+/// A volume of any layout and sample type: its grid, its samples and how
+/// they are laid out.
 ///
 /// ```
-/// # use raycaster::volume::{AnyVolume, Grid, LinearVolume, Volume};
-/// let any = AnyVolume::from(LinearVolume::from_fn(Grid::new(glam::UVec3::splat(2), glam::Vec3::ONE), |_| 7u8));
-/// let value = raycaster::dispatch_volume!(&any, v => v.sample(glam::Vec3::splat(0.5)));
-/// assert_eq!(value, 7.0);
+/// use glam::{UVec3, Vec3};
+/// use raycaster::volume::{AnyVolume, Grid, Volume, VolumeVisitor};
+///
+/// let grid = Grid::new(UVec3::splat(2), Vec3::ONE);
+/// let volume = AnyVolume::from_fn(grid, |v| (v.x * 10) as u8);
+/// struct Centre;
+/// impl VolumeVisitor for Centre {
+///     type Output = f32;
+///     fn visit<V: Volume>(self, v: &V) -> f32 { v.sample(Vec3::splat(0.5)) }
+/// }
+/// assert_eq!(volume.visit(Centre), 5.0);
 /// ```
-#[macro_export]
-macro_rules! dispatch_volume {
-    ($any:expr, $v:ident => $body:expr) => {
-        match $any {
-            $crate::volume::AnyVolume::LinearU8($v) => $body,
-            $crate::volume::AnyVolume::LinearI8($v) => $body,
-            $crate::volume::AnyVolume::LinearU16($v) => $body,
-            $crate::volume::AnyVolume::LinearI16($v) => $body,
-            $crate::volume::AnyVolume::LinearF32($v) => $body,
-            $crate::volume::AnyVolume::BrickedU8($v) => $body,
-            $crate::volume::AnyVolume::BrickedI8($v) => $body,
-            $crate::volume::AnyVolume::BrickedU16($v) => $body,
-            $crate::volume::AnyVolume::BrickedI16($v) => $body,
-            $crate::volume::AnyVolume::BrickedF32($v) => $body,
-        }
-    };
+#[derive(Debug)]
+pub struct AnyVolume {
+    grid: Grid,
+    storage: Storage,
+    addressing: AnyAddressing,
 }
 
 impl AnyVolume {
+    /// A volume of `storage` laid out by `addressing` on `grid`; the
+    /// storage must hold exactly the samples the addressing needs.
+    pub fn new(grid: Grid, storage: Storage, addressing: AnyAddressing) -> Result<Self> {
+        if storage.len() != addressing.storage_len() {
+            return Err(Error::InvalidVolume(format!(
+                "{} {}x{}x{} needs {} samples, got {}",
+                addressing.layout(),
+                grid.dims.x,
+                grid.dims.y,
+                grid.dims.z,
+                addressing.storage_len(),
+                storage.len()
+            )));
+        }
+        Ok(AnyVolume {
+            grid,
+            storage,
+            addressing,
+        })
+    }
+
+    /// One array of samples in `order`.
+    pub fn linear(grid: Grid, storage: Storage, order: AxisOrder) -> Result<Self> {
+        let addressing = Linear::new(grid.dims, order).ok_or_else(|| Error::TooLarge {
+            path: Default::default(),
+            what: format!("{} voxels", grid.voxel_count()),
+        })?;
+        Self::new(grid, storage, AnyAddressing::Linear(addressing))
+    }
+
+    /// Bricks of `side` samples in file order.
+    pub fn bricked(grid: Grid, side: u32, storage: Storage) -> Result<Self> {
+        let addressing = Bricked::new(grid.dims, side)?;
+        Self::new(grid, storage, AnyAddressing::Bricked(addressing))
+    }
+
+    /// Builds a linear volume (z fastest) in RAM from a function of the
+    /// voxel coordinate.
+    pub fn from_fn<S: Sample>(grid: Grid, mut f: impl FnMut(UVec3) -> S) -> Self {
+        let mut v = Vec::with_capacity(grid.voxel_count() as usize);
+        for x in 0..grid.dims.x {
+            for y in 0..grid.dims.y {
+                for z in 0..grid.dims.z {
+                    v.push(f(UVec3::new(x, y, z)));
+                }
+            }
+        }
+        match Self::linear(grid, Storage::from_vec(v), AxisOrder::ZFast) {
+            Ok(vol) => vol,
+            Err(_) => unreachable!("from_fn produces exactly voxel_count samples"),
+        }
+    }
+
+    /// Builds a bricked volume in RAM from a function of the voxel
+    /// coordinate (padding past the grid's edge is 0, as in the file format).
+    pub fn bricked_from_fn<S: Sample>(
+        grid: Grid,
+        side: u32,
+        mut f: impl FnMut(UVec3) -> S,
+    ) -> Result<Self> {
+        let bricks = BrickGrid::new(grid.dims, side)?;
+        let len = bricks.total_len().unwrap_or(u64::MAX);
+        let v = (0..len)
+            .map(|i| bricks.voxel_at(i, grid.dims).map_or(S::zeroed(), &mut f))
+            .collect::<Vec<S>>();
+        Self::bricked(grid, side, Storage::from_vec(v))
+    }
+
+    /// A copy of this volume in RAM in another `layout`, same sample type.
+    pub fn with_layout(&self, layout: Layout) -> Result<AnyVolume> {
+        struct Relayout(Layout);
+        impl VolumeVisitor for Relayout {
+            type Output = Result<AnyVolume>;
+            fn visit<V: Volume>(self, v: &V) -> Result<AnyVolume> {
+                let grid = *v.grid();
+                match self.0 {
+                    Layout::Linear => Ok(AnyVolume::from_fn(grid, |p| v.voxel(p))),
+                    Layout::LinearXFast => {
+                        let d = grid.dims;
+                        let mut out = Vec::with_capacity(grid.voxel_count() as usize);
+                        for z in 0..d.z {
+                            for y in 0..d.y {
+                                for x in 0..d.x {
+                                    out.push(v.voxel(UVec3::new(x, y, z)));
+                                }
+                            }
+                        }
+                        AnyVolume::linear(grid, Storage::from_vec(out), AxisOrder::XFast)
+                    }
+                    Layout::Bricked { side } => {
+                        AnyVolume::bricked_from_fn(grid, side, |p| v.voxel(p))
+                    }
+                }
+            }
+        }
+        self.visit(Relayout(layout))
+    }
+
+    /// Runs `visitor` on the concretely typed view of this volume: one
+    /// monomorphised copy of the visitor per sample type and addressing.
+    pub fn visit<T: VolumeVisitor>(&self, visitor: T) -> T::Output {
+        struct Typed<'v, T> {
+            volume: &'v AnyVolume,
+            visitor: T,
+        }
+        impl<T: VolumeVisitor> SampleTypeVisitor for Typed<'_, T> {
+            type Output = T::Output;
+            fn visit<S: Sample>(self) -> T::Output {
+                let v = self.volume;
+                let data = v.storage.as_slice::<S>();
+                let kind = v.storage.kind();
+                match &v.addressing {
+                    AnyAddressing::Linear(a) => {
+                        self.visitor.visit(&GridVolume::new(&v.grid, data, a, kind))
+                    }
+                    AnyAddressing::Bricked(a) => {
+                        self.visitor.visit(&GridVolume::new(&v.grid, data, a, kind))
+                    }
+                }
+            }
+        }
+        self.sample_type().visit(Typed {
+            volume: self,
+            visitor,
+        })
+    }
+
     /// Dimensions, spacing and origin.
     pub fn grid(&self) -> &Grid {
-        crate::dispatch_volume!(self, v => v.grid())
+        &self.grid
     }
 
     /// Memory layout.
     pub fn layout(&self) -> Layout {
-        crate::dispatch_volume!(self, v => v.layout())
+        self.addressing.layout()
+    }
+
+    /// The addressing (linear or bricked).
+    pub fn addressing(&self) -> &AnyAddressing {
+        &self.addressing
     }
 
     /// RAM or mapped.
     pub fn storage_kind(&self) -> StorageKind {
-        crate::dispatch_volume!(self, v => v.storage_kind())
+        self.storage.kind()
     }
 
     /// Bytes the samples take in memory (bricks include their overlap and
     /// padding), whether in RAM or mapped.
     pub fn memory_bytes(&self) -> u64 {
-        crate::dispatch_volume!(self, v => std::mem::size_of_val(v.samples()) as u64)
+        self.storage.as_bytes().len() as u64
     }
 
     /// The sample type.
     pub fn sample_type(&self) -> SampleType {
-        fn tag<V: Volume>(_: &V) -> SampleType {
-            <V::Sample as crate::sample::Sample>::TYPE
+        self.storage.sample_type()
+    }
+
+    /// The samples in storage order, when they are of type `S`.
+    pub fn samples<S: Sample>(&self) -> Option<&[S]> {
+        (S::TYPE == self.sample_type()).then(|| self.storage.as_slice::<S>())
+    }
+
+    /// The value of voxel `v` as a float (panics outside the grid).
+    pub fn value(&self, v: UVec3) -> f32 {
+        struct Value(UVec3);
+        impl VolumeVisitor for Value {
+            type Output = f32;
+            fn visit<V: Volume>(self, volume: &V) -> f32 {
+                crate::sample::Sample::to_f32(volume.voxel(self.0))
+            }
         }
-        crate::dispatch_volume!(self, v => tag(v))
+        self.visit(Value(v))
     }
 }

@@ -1,83 +1,33 @@
 //! Volumes: a grid of samples in world space that can be sampled anywhere
-//! inside it by trilinear interpolation (SPEC §2).
+//! inside it by trilinear interpolation. Sample `(x, y, z)` sits at world
+//! position `origin + (x, y, z)·spacing`; values between samples are the
+//! trilinear interpolation of the 8 around them.
 //!
-//! [`Volume`] is the one interface renderers use. Its implementations,
-//! [`LinearVolume`] and [`BrickedVolume`], differ only in how a voxel
-//! coordinate maps to an index in their [`Storage`](crate::storage::Storage);
-//! both reduce a trilinear lookup to "a base index and three strides", so the
-//! hot loop is the same code, monomorphised per layout and sample type.
+//! - [`AnyVolume`] owns a volume whose sample type and layout are known at
+//!   run time (what a file reader returns): a [`Grid`], an untyped
+//!   [`Storage`](crate::storage::Storage) and an [`AnyAddressing`].
+//! - [`GridVolume`] is the typed view of it that hot loops use, generic over
+//!   the [`Sample`] type and the [`Addressing`] ([`Linear`] or [`Bricked`]);
+//!   [`AnyVolume::visit`] is the one place that picks the concrete type.
+//! - [`Volume`] is what an integrator may ask of a volume: locate a cell,
+//!   load its corners and gradient stencil, interpolate.
 
-/// The `locate`, `corners` and `wings` methods of [`Volume`] for a layout
-/// type with fields `grid`, `data`, `stride`, `max_coord`, `last` and methods
-/// `index(UVec3)` and `stencil_offsets(UVec3)`: the layouts differ only in
-/// those two address computations.
-macro_rules! cell_access {
-    () => {
-        #[inline(always)]
-        fn locate(&self, p: Vec3) -> super::CellPos {
-            let (x, fx) = super::split_coord(p.x, self.max_coord.x, self.last.x);
-            let (y, fy) = super::split_coord(p.y, self.max_coord.y, self.last.y);
-            let (z, fz) = super::split_coord(p.z, self.max_coord.z, self.last.z);
-            super::CellPos {
-                cell: UVec3::new(x, y, z),
-                frac: Vec3::new(fx, fy, fz),
-            }
-        }
-
-        #[inline(always)]
-        fn corners(&self, cell: UVec3) -> super::Corners {
-            super::load_corners(self.data.as_slice(), self.index(cell), self.stride)
-        }
-
-        #[inline(always)]
-        fn wings(&self, cell: UVec3) -> Option<super::Wings> {
-            if !super::stencil_inside(cell, self.grid.dims) {
-                return None;
-            }
-            let [xo, yo, zo] = self.stencil_offsets(cell);
-            Some(super::load_wings(self.data.as_slice(), xo, yo, zo))
-        }
-    };
-}
-
+mod addressing;
 mod any;
-mod bricked;
 mod grid;
-mod linear;
+mod grid_volume;
+mod ranges;
 
-pub use any::AnyVolume;
-pub use bricked::{BrickGrid, BrickedVolume};
+pub use addressing::{Addressing, AnyAddressing, AxisOrder, BrickGrid, Bricked, Layout, Linear};
+pub use any::{AnyVolume, VolumeVisitor};
 pub use grid::Grid;
-pub use linear::{AxisOrder, LinearVolume};
+pub use grid_volume::GridVolume;
+pub(crate) use ranges::fold_range_f32;
 
 use glam::{UVec3, Vec3};
 
 use crate::sample::Sample;
 use crate::storage::StorageKind;
-
-/// How a volume's samples are ordered in memory.
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
-pub enum Layout {
-    /// One array, z fastest (`index = (x·Y + y)·Z + z`).
-    Linear,
-    /// One array, x fastest (`index = (z·Y + y)·X + x`).
-    LinearXFast,
-    /// Cubic bricks of `side`³ samples overlapping by one voxel plane.
-    Bricked {
-        /// Brick side in voxels.
-        side: u32,
-    },
-}
-
-impl std::fmt::Display for Layout {
-    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
-        match self {
-            Layout::Linear => f.write_str("linear"),
-            Layout::LinearXFast => f.write_str("linear (x fastest)"),
-            Layout::Bricked { side } => write!(f, "bricked (B = {side})"),
-        }
-    }
-}
 
 /// A volume that renderers can sample.
 ///
@@ -127,27 +77,10 @@ pub trait Volume: Send + Sync {
     /// The value range of every macrocell of side `cell` (cell `c` covers
     /// voxels `c·cell ..= c·cell + cell` per axis), `count` cells per axis,
     /// x slowest and z fastest, on the threads of the current rayon pool.
-    fn cell_value_ranges(&self, cell: u32, count: UVec3) -> Vec<(f32, f32)> {
-        use rayon::prelude::*;
-        let per_slab = (count.y * count.z) as usize;
-        let mut ranges = vec![(0.0f32, 0.0f32); count.x as usize * per_slab];
-        ranges
-            .par_chunks_mut(per_slab)
-            .enumerate()
-            .for_each(|(cx, slab)| {
-                for cy in 0..count.y {
-                    for cz in 0..count.z {
-                        let lo = UVec3::new(cx as u32, cy, cz) * cell;
-                        let (a, b) = self.value_range(lo, lo + UVec3::splat(cell));
-                        slab[(cy * count.z + cz) as usize] = (a.to_f32(), b.to_f32());
-                    }
-                }
-            });
-        ranges
-    }
+    fn cell_value_ranges(&self, cell: u32, count: UVec3) -> Vec<(f32, f32)>;
 
     /// Central-difference gradient of the interpolated field at voxel-space
-    /// position `p`, in value units per world unit (SPEC §5). Differences are
+    /// position `p`, in value units per world unit. Differences are
     /// taken one voxel apart along each axis, clamped at the grid's faces.
     #[inline(always)]
     fn gradient(&self, p: Vec3) -> Vec3 {
@@ -322,150 +255,6 @@ pub fn clamped_gradient<V: Volume + ?Sized>(volume: &V, p: Vec3) -> Vec3 {
 #[inline(always)]
 pub(crate) fn stencil_inside(c: UVec3, dims: UVec3) -> bool {
     c.cmpge(UVec3::ONE).all() && (c + UVec3::splat(2)).cmplt(dims).all()
-}
-
-/// Macrocell value ranges in one streaming pass over rows of voxels along z.
-///
-/// Each x-slab of cells (in parallel) folds its voxel rows element-wise into
-/// per-(cell row, z) accumulators — min/max over whole rows, which vectorises
-/// — then reduces the z windows. `fill(x, y, row)` copies voxel row `(x, y)`
-/// (all z) into `row`.
-pub(crate) fn cell_value_ranges_by_rows<S: Sample>(
-    dims: UVec3,
-    cell: u32,
-    count: UVec3,
-    fill: impl Fn(u32, u32, &mut [S]) + Sync,
-) -> Vec<(f32, f32)> {
-    use rayon::prelude::*;
-    let (ny, nz) = (count.y as usize, count.z as usize);
-    let zlen = dims.z as usize;
-    let mut ranges = vec![(0.0f32, 0.0f32); count.x as usize * ny * nz];
-    ranges
-        .par_chunks_mut(ny * nz)
-        .enumerate()
-        .for_each(|(cx, slab)| {
-            let mut lo = vec![S::HIGHEST; ny * zlen];
-            let mut hi = vec![S::LOWEST; ny * zlen];
-            let mut row = vec![S::zeroed(); zlen];
-            let x_end = (cx as u32 * cell + cell).min(dims.x - 1);
-            for x in cx as u32 * cell..=x_end {
-                for y in 0..dims.y {
-                    fill(x, y, &mut row);
-                    // Row y belongs to cell rows c with c·cell <= y <= c·cell + cell.
-                    let c_hi = (y / cell).min(count.y - 1);
-                    let c_lo = if y >= cell {
-                        (y - cell).div_ceil(cell)
-                    } else {
-                        0
-                    };
-                    for cy in c_lo..=c_hi {
-                        let o = cy as usize * zlen;
-                        fold_row(&mut lo[o..o + zlen], &mut hi[o..o + zlen], &row);
-                    }
-                }
-            }
-            let m = cell as usize;
-            let mut wlo = vec![S::HIGHEST; zlen];
-            let mut whi = vec![S::LOWEST; zlen];
-            let mut tmp = vec![S::HIGHEST; zlen];
-            for cy in 0..ny {
-                // Window minima of length m + 1 at every z, by doubling
-                // (vectorised passes over the row), then one per cell.
-                window_extreme(
-                    &lo[cy * zlen..][..zlen],
-                    m + 1,
-                    &mut wlo,
-                    &mut tmp,
-                    |a, b| a.min_of(b),
-                );
-                window_extreme(
-                    &hi[cy * zlen..][..zlen],
-                    m + 1,
-                    &mut whi,
-                    &mut tmp,
-                    |a, b| a.max_of(b),
-                );
-                for (cz, out) in slab[cy * nz..][..nz].iter_mut().enumerate() {
-                    let z0 = cz * m;
-                    *out = (wlo[z0].to_f32(), whi[z0].to_f32());
-                }
-            }
-        });
-    ranges
-}
-
-/// `out[z] = op(row[z], …, row[z + len − 1])`, with the window cut at the
-/// row's end. Doubling: windows of 1, 2, 4, … elements, each pass one
-/// element-wise operation over shifted slices (vectorised), then one more
-/// pass to reach exactly `len`.
-fn window_extreme<S: Sample>(
-    row: &[S],
-    len: usize,
-    out: &mut [S],
-    tmp: &mut [S],
-    op: impl Fn(S, S) -> S + Copy,
-) {
-    let n = row.len();
-    let (out, tmp) = (&mut out[..n], &mut tmp[..n]);
-    out.copy_from_slice(row);
-    let mut have = 1;
-    while have * 2 <= len && have < n {
-        // out holds windows of `have`; combine with the window `have` ahead.
-        tmp.copy_from_slice(out);
-        for ((o, &a), &b) in out[..n - have]
-            .iter_mut()
-            .zip(&tmp[..n - have])
-            .zip(&tmp[have..])
-        {
-            *o = op(a, b);
-        }
-        have *= 2;
-    }
-    if have < len && n > 1 {
-        // Windows of `have` at i and at i + len − have cover [i, i + len).
-        let shift = (len - have).min(n - 1);
-        tmp.copy_from_slice(out);
-        for ((o, &a), &b) in out[..n - shift]
-            .iter_mut()
-            .zip(&tmp[..n - shift])
-            .zip(&tmp[shift..])
-        {
-            *o = op(a, b);
-        }
-        let last = tmp[n - 1];
-        for o in &mut out[n - shift..] {
-            *o = op(*o, last);
-        }
-    }
-}
-
-/// Element-wise `lo = min(lo, row)`, `hi = max(hi, row)`; written with
-/// equal-length slices and indices so that it vectorises.
-#[inline(always)]
-fn fold_row<S: Sample>(lo: &mut [S], hi: &mut [S], row: &[S]) {
-    let n = row.len().min(lo.len()).min(hi.len());
-    let (lo, hi, row) = (&mut lo[..n], &mut hi[..n], &row[..n]);
-    for i in 0..n {
-        lo[i] = lo[i].min_of(row[i]);
-        hi[i] = hi[i].max_of(row[i]);
-    }
-}
-
-/// Smallest and largest of the values yielded, as `f32`.
-pub(crate) fn fold_range<S: Sample>(values: impl Iterator<Item = S>) -> (S, S) {
-    values.fold((S::HIGHEST, S::LOWEST), |(lo, hi), v| {
-        (lo.min_of(v), hi.max_of(v))
-    })
-}
-
-/// Smallest and largest of `samples` as `f32` ((+inf, −inf) when empty).
-pub(crate) fn fold_range_f32<S: Sample>(samples: &[S]) -> (f32, f32) {
-    let (lo, hi) = fold_range(samples.iter().copied());
-    if samples.is_empty() {
-        (f32::INFINITY, f32::NEG_INFINITY)
-    } else {
-        (lo.to_f32(), hi.to_f32())
-    }
 }
 
 /// Truncates `v` (any float, NaN included) to an integer coordinate in

@@ -3,6 +3,7 @@
 use glam::{UVec3, Vec3};
 
 use super::*;
+use crate::storage::StorageKind;
 
 /// An affine field: trilinear interpolation must reproduce it exactly and its
 /// gradient is the coefficient vector divided by the spacing.
@@ -10,12 +11,40 @@ fn affine(v: UVec3) -> f32 {
     2.0 * v.x as f32 + 3.0 * v.y as f32 - 1.5 * v.z as f32 + 100.0
 }
 
-fn volumes(dims: UVec3, spacing: Vec3, side: u32) -> (LinearVolume<f32>, BrickedVolume<f32>) {
+/// A volume owned by a test, viewed as a [`GridVolume`].
+struct Owned<S: Sample, A: Addressing> {
+    grid: Grid,
+    data: Vec<S>,
+    addr: A,
+}
+
+impl<S: Sample, A: Addressing> Owned<S, A> {
+    fn view(&self) -> GridVolume<'_, S, A> {
+        GridVolume::new(&self.grid, &self.data, &self.addr, StorageKind::Ram)
+    }
+}
+
+fn linear<S: Sample>(grid: Grid, f: impl Fn(UVec3) -> S) -> Owned<S, Linear> {
+    let v = AnyVolume::from_fn(grid, f);
+    Owned {
+        grid,
+        data: v.samples::<S>().unwrap().to_vec(),
+        addr: Linear::new(grid.dims, AxisOrder::ZFast).unwrap(),
+    }
+}
+
+fn bricked<S: Sample>(grid: Grid, side: u32, f: impl Fn(UVec3) -> S) -> Owned<S, Bricked> {
+    let v = AnyVolume::bricked_from_fn(grid, side, f).unwrap();
+    Owned {
+        grid,
+        data: v.samples::<S>().unwrap().to_vec(),
+        addr: Bricked::new(grid.dims, side).unwrap(),
+    }
+}
+
+fn volumes(dims: UVec3, spacing: Vec3, side: u32) -> (Owned<f32, Linear>, Owned<f32, Bricked>) {
     let grid = Grid::new(dims, spacing);
-    (
-        LinearVolume::from_fn(grid, affine),
-        BrickedVolume::from_fn(grid, side, affine).unwrap(),
-    )
+    (linear(grid, affine), bricked(grid, side, affine))
 }
 
 #[test]
@@ -31,14 +60,18 @@ fn trilinear_reproduces_affine_fields_in_both_layouts() {
         for _ in 0..500 {
             let p = Vec3::new(rng.f32(), rng.f32(), rng.f32()) * max;
             let want = 2.0 * p.x + 3.0 * p.y - 1.5 * p.z + 100.0;
-            assert!((lin.sample(p) - want).abs() < 1e-3, "{p}");
-            assert_eq!(lin.sample(p), bri.sample(p), "layouts differ at {p}");
+            assert!((lin.view().sample(p) - want).abs() < 1e-3, "{p}");
+            assert_eq!(
+                lin.view().sample(p),
+                bri.view().sample(p),
+                "layouts differ at {p}"
+            );
         }
         // Grid points and the far corner read the voxels themselves.
-        assert_eq!(lin.sample(max), affine(dims - UVec3::ONE));
-        assert_eq!(bri.sample(max), affine(dims - UVec3::ONE));
+        assert_eq!(lin.view().sample(max), affine(dims - UVec3::ONE));
+        assert_eq!(bri.view().sample(max), affine(dims - UVec3::ONE));
         // Out-of-grid positions clamp.
-        assert_eq!(lin.sample(Vec3::splat(-5.0)), affine(UVec3::ZERO));
+        assert_eq!(lin.view().sample(Vec3::splat(-5.0)), affine(UVec3::ZERO));
     }
 }
 
@@ -51,20 +84,24 @@ fn fast_gradient_equals_clamped_gradient_and_the_analytic_one() {
     let max = Vec3::new(19.0, 17.0, 21.0);
     for _ in 0..500 {
         let p = Vec3::new(rng.f32(), rng.f32(), rng.f32()) * max;
-        for g in [lin.gradient(p), bri.gradient(p), clamped_gradient(&lin, p)] {
+        for g in [
+            lin.view().gradient(p),
+            bri.view().gradient(p),
+            clamped_gradient(&lin.view(), p),
+        ] {
             assert!((g - exact).length() < 1e-3, "{p}: {g} vs {exact}");
         }
     }
     // A non-affine field: the interior fast path must agree with the generic one.
     let grid = Grid::new(UVec3::new(12, 11, 13), spacing);
     let f = |v: UVec3| ((v.x * 37 + v.y * 11 + v.z * v.z * 5) % 251) as u8;
-    let lin = LinearVolume::from_fn(grid, f);
-    let bri = BrickedVolume::from_fn(grid, 5, f).unwrap();
+    let lin = linear(grid, f);
+    let bri = bricked(grid, 5, f);
     for _ in 0..500 {
         let p = Vec3::new(rng.f32() * 11.0, rng.f32() * 10.0, rng.f32() * 12.0);
-        let want = clamped_gradient(&lin, p);
-        assert!((lin.gradient(p) - want).length() < 1e-3);
-        assert!((bri.gradient(p) - want).length() < 1e-3);
+        let want = clamped_gradient(&lin.view(), p);
+        assert!((lin.view().gradient(p) - want).length() < 1e-3);
+        assert!((bri.view().gradient(p) - want).length() < 1e-3);
     }
 }
 
@@ -73,9 +110,9 @@ fn value_ranges_agree_between_layouts() {
     let mut rng = fastrand::Rng::with_seed(3);
     let grid = Grid::new(UVec3::new(23, 9, 31), Vec3::ONE);
     let f = |v: UVec3| ((v.x * 131 + v.y * 71 + v.z * 17) % 253) as u8;
-    let lin = LinearVolume::from_fn(grid, f);
+    let lin = linear(grid, f);
     for side in [2, 3, 7, 16] {
-        let bri = BrickedVolume::from_fn(grid, side, f).unwrap();
+        let bri = bricked(grid, side, f);
         for _ in 0..200 {
             let lo = UVec3::new(rng.u32(0..23), rng.u32(0..9), rng.u32(0..31));
             let hi = lo + UVec3::new(rng.u32(0..10), rng.u32(0..10), rng.u32(0..10));
@@ -86,8 +123,12 @@ fn value_ranges_agree_between_layouts() {
                     })
                 })
                 .fold((255u8, 0u8), |(a, b), v| (a.min(v), b.max(v)));
-            assert_eq!(lin.value_range(lo, hi), brute);
-            assert_eq!(bri.value_range(lo, hi), brute, "side {side} box {lo}..{hi}");
+            assert_eq!(lin.view().value_range(lo, hi), brute);
+            assert_eq!(
+                bri.view().value_range(lo, hi),
+                brute,
+                "side {side} box {lo}..{hi}"
+            );
         }
     }
 }
@@ -103,13 +144,13 @@ fn fast_macrocell_ranges_equal_the_generic_ones() {
     ] {
         let grid = Grid::new(dims, Vec3::ONE);
         let f = |v: UVec3| ((v.x * 131 + v.y * 71 + v.z * 17) % 253) as u8;
-        let lin = LinearVolume::from_fn(grid, f);
-        let bri = BrickedVolume::from_fn(grid, 5, f).unwrap();
+        let lin = linear(grid, f);
+        let bri = bricked(grid, 5, f);
         let n = |d: u32| if d <= 1 { 1 } else { (d - 1).div_ceil(cell) };
         let count = UVec3::new(n(dims.x), n(dims.y), n(dims.z));
         assert_eq!(
-            lin.cell_value_ranges(cell, count),
-            bri.cell_value_ranges(cell, count),
+            lin.view().cell_value_ranges(cell, count),
+            bri.view().cell_value_ranges(cell, count),
             "{dims} cell {cell}"
         );
     }
@@ -141,9 +182,9 @@ fn unchecked_conversions_are_fed_only_representable_values() {
         Vec3::NEG_INFINITY,
         Vec3::new(f32::NAN, 2.0, -9.0),
     ] {
-        assert!(lin.sample(p).is_finite(), "{p}");
-        assert!(bri.sample(p).is_finite(), "{p}");
-        assert!(lin.gradient(p).is_finite(), "{p}");
+        assert!(lin.view().sample(p).is_finite(), "{p}");
+        assert!(bri.view().sample(p).is_finite(), "{p}");
+        assert!(lin.view().gradient(p).is_finite(), "{p}");
     }
     let tf =
         crate::transfer::TransferFunction::preset("ramp", crate::sample::SampleType::U8).unwrap();
@@ -155,7 +196,7 @@ fn unchecked_conversions_are_fed_only_representable_values() {
 }
 
 /// The same field stored x fastest.
-fn x_fast<S: Sample>(grid: Grid, f: impl Fn(UVec3) -> S) -> LinearVolume<S> {
+fn x_fast<S: Sample>(grid: Grid, f: impl Fn(UVec3) -> S) -> Owned<S, Linear> {
     let d = grid.dims;
     let mut v = Vec::new();
     for z in 0..d.z {
@@ -165,7 +206,11 @@ fn x_fast<S: Sample>(grid: Grid, f: impl Fn(UVec3) -> S) -> LinearVolume<S> {
             }
         }
     }
-    LinearVolume::with_order(grid, crate::storage::Storage::from_vec(v), AxisOrder::XFast).unwrap()
+    Owned {
+        grid,
+        data: v,
+        addr: Linear::new(grid.dims, AxisOrder::XFast).unwrap(),
+    }
 }
 
 #[test]
@@ -179,20 +224,20 @@ fn x_fast_order_samples_like_z_fast() {
     ] {
         let grid = Grid::new(dims, Vec3::new(1.0, 0.5, 2.0));
         let f = |v: UVec3| ((v.x * 131 + v.y * 71 + v.z * v.z * 17) % 253) as i16 - 100;
-        let z = LinearVolume::from_fn(grid, f);
+        let z = linear(grid, f);
         let x = x_fast(grid, f);
-        assert_eq!(x.layout(), Layout::LinearXFast);
+        assert_eq!(x.view().layout(), Layout::LinearXFast);
         let max = grid.max_coord();
         for _ in 0..300 {
             let p = Vec3::new(rng.f32(), rng.f32(), rng.f32()) * max;
-            assert_eq!(x.sample(p), z.sample(p), "{dims} at {p}");
-            assert_eq!(x.gradient(p), z.gradient(p), "{dims} at {p}");
+            assert_eq!(x.view().sample(p), z.view().sample(p), "{dims} at {p}");
+            assert_eq!(x.view().gradient(p), z.view().gradient(p), "{dims} at {p}");
             let v = (p.as_uvec3()).min(dims - UVec3::ONE);
-            assert_eq!(x.voxel(v), z.voxel(v));
+            assert_eq!(x.view().voxel(v), z.view().voxel(v));
             let hi = v + UVec3::new(rng.u32(0..6), rng.u32(0..6), rng.u32(0..6));
             assert_eq!(
-                x.value_range(v, hi),
-                z.value_range(v, hi),
+                x.view().value_range(v, hi),
+                z.view().value_range(v, hi),
                 "{dims} {v}..{hi}"
             );
         }
@@ -200,8 +245,8 @@ fn x_fast_order_samples_like_z_fast() {
             let n = |d: u32| if d <= 1 { 1 } else { (d - 1).div_ceil(cell) };
             let count = UVec3::new(n(dims.x), n(dims.y), n(dims.z));
             assert_eq!(
-                x.cell_value_ranges(cell, count),
-                z.cell_value_ranges(cell, count),
+                x.view().cell_value_ranges(cell, count),
+                z.view().cell_value_ranges(cell, count),
                 "{dims} cell {cell}"
             );
         }

@@ -107,19 +107,38 @@ impl Histogram {
         let stride = ((voxels / HISTOGRAM_SAMPLES as f64).cbrt().ceil() as u32).max(1);
         let mut counts = vec![0u64; bins];
         let scale = bins as f32 / (hi - lo);
-        raycaster::dispatch_volume!(volume, v => {
-            use raycaster::sample::Sample;
-            let xs = dims.x.div_ceil(stride);
-            for (i, x) in (0..dims.x).step_by(stride as usize).enumerate() {
-                for y in (0..dims.y).step_by(stride as usize) {
-                    for z in (0..dims.z).step_by(stride as usize) {
-                        let s = v.voxel(UVec3::new(x, y, z)).to_f32();
-                        let b = ((s - lo) * scale) as usize;
-                        counts[b.min(bins - 1)] += 1;
+        struct Count<'a> {
+            stride: u32,
+            lo: f32,
+            scale: f32,
+            counts: &'a mut [u64],
+            progress: &'a mut dyn FnMut(f32),
+        }
+        impl raycaster::volume::VolumeVisitor for Count<'_> {
+            type Output = ();
+            fn visit<V: raycaster::volume::Volume>(self, v: &V) {
+                use raycaster::sample::Sample;
+                let dims = v.grid().dims;
+                let (stride, bins) = (self.stride, self.counts.len());
+                let xs = dims.x.div_ceil(stride);
+                for (i, x) in (0..dims.x).step_by(stride as usize).enumerate() {
+                    for y in (0..dims.y).step_by(stride as usize) {
+                        for z in (0..dims.z).step_by(stride as usize) {
+                            let s = v.voxel(UVec3::new(x, y, z)).to_f32();
+                            let b = ((s - self.lo) * self.scale) as usize;
+                            self.counts[b.min(bins - 1)] += 1;
+                        }
                     }
+                    (self.progress)((i + 1) as f32 / xs as f32);
                 }
-                progress((i + 1) as f32 / xs as f32);
             }
+        }
+        volume.visit(Count {
+            stride,
+            lo,
+            scale,
+            counts: &mut counts,
+            progress: &mut progress,
         });
         Histogram {
             range,
@@ -287,7 +306,7 @@ fn load(
             )
         }
         Source::Demo => (
-            AnyVolume::from(crate::demo::demo_volume()),
+            crate::demo::demo_volume(),
             "built-in demo".to_string(),
             None,
             None,
@@ -337,7 +356,6 @@ fn file_name(path: &Path) -> String {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use raycaster::volume::LinearVolume;
 
     fn wait(job: &LoadJob) -> Result<Loaded, String> {
         let t = Instant::now();
@@ -353,7 +371,7 @@ mod tests {
     #[test]
     fn histogram_counts_every_integer_value_in_its_own_bin() {
         let grid = Grid::new(UVec3::new(4, 5, 6), Vec3::ONE);
-        let v = AnyVolume::from(LinearVolume::from_fn(grid, |p| (p.x * 10) as u8 + 3));
+        let v = AnyVolume::from_fn(grid, |p| (p.x * 10) as u8 + 3);
         let h = Histogram::of(&v, (3.0, 33.0), |_| {});
         assert_eq!(h.counts.len(), 31);
         assert_eq!(h.counts.iter().sum::<u64>(), 120);

@@ -293,14 +293,14 @@ mod tests {
 
     fn request(width: u32) -> RenderRequest {
         let grid = Grid::new(UVec3::splat(16), Vec3::ONE);
-        let volume = LinearVolume::from_fn(grid, |v| {
+        let volume = AnyVolume::from_fn(grid, |v| {
             if (v.as_vec3() - Vec3::splat(7.5)).length() < 6.0 {
                 200u8
             } else {
                 0
             }
         });
-        let scene = Arc::new(Scene::new(AnyVolume::from(volume)));
+        let scene = Arc::new(Scene::new(volume));
         let camera = Camera::framing(&scene.grid().bounds(), width, 32, 45.0);
         RenderRequest {
             scene,
