@@ -4,7 +4,7 @@
 use glam::Vec3;
 use raycaster::accel::SkipGrid;
 use raycaster::geometry::Ray;
-use raycaster::integrator::{DvrState, FrameContext, IsoState, MipState, RaySegment};
+use raycaster::integrator::{DvrState, FrameContext, Integrator, IsoState, MipState, RaySegment};
 use raycaster::prelude::*;
 use raycaster::transfer::TfLut;
 
@@ -15,6 +15,8 @@ pub struct RayLab<'a> {
     tf: &'a TransferFunction,
     lut: TfLut,
     skip: SkipGrid,
+    /// The skip grid of modes that visit every cell (MIP).
+    every: SkipGrid,
     step: f32,
     iso: f32,
 }
@@ -23,6 +25,9 @@ pub struct RayLab<'a> {
 /// volume.
 trait RayJob {
     type Out;
+    /// The job visits every macrocell (its integrator's occupancy is
+    /// `Every`), rather than skipping the lab's empty ones.
+    const EVERY_CELL: bool = false;
     fn run<V: Volume>(self, ctx: &FrameContext<'_, V>, seg: &RaySegment) -> Self::Out;
 }
 
@@ -49,6 +54,7 @@ impl<'a> RayLab<'a> {
             tf,
             lut,
             skip,
+            every: SkipGrid::all_occupied(scene.macrocells()),
             step,
             iso: iso.unwrap_or(0.0),
         }
@@ -72,7 +78,7 @@ impl<'a> RayLab<'a> {
                     tf: lab.tf,
                     lut: &lab.lut,
                     macrocells: lab.scene.macrocells(),
-                    skip: &lab.skip,
+                    skip: if J::EVERY_CELL { &lab.every } else { &lab.skip },
                     ess: self.ess,
                     ert: None,
                     shading: None,
@@ -122,6 +128,7 @@ impl<'a> RayLab<'a> {
         struct Mip;
         impl RayJob for Mip {
             type Out = f32;
+            const EVERY_CELL: bool = true;
             fn run<V: Volume>(self, ctx: &FrameContext<'_, V>, seg: &RaySegment) -> f32 {
                 let mut st = MipState::default();
                 st.integrate(ctx, seg, 0, seg.count);

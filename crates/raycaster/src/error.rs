@@ -63,6 +63,14 @@ pub enum Error {
         /// What the operating system said.
         source: std::io::Error,
     },
+    /// An image could not be encoded or written.
+    #[error("{}: {message}", path.display())]
+    Image {
+        /// The image file.
+        path: PathBuf,
+        /// What the encoder said.
+        message: String,
+    },
     /// A frame was cancelled by a caller that cannot see cancellations.
     #[error("the {renderer} renderer stopped a frame that could not be cancelled")]
     Cancelled {

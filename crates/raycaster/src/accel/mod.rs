@@ -7,10 +7,13 @@
 //! for each empty one its Chebyshev distance, in cells, to the nearest
 //! non-empty one. A ray in an empty cell with distance `d` can jump straight
 //! out of the cube of `2d − 1` empty cells around it, so crossing empty space
-//! costs a handful of box exits instead of one test per step.
+//! costs a handful of box exits instead of one test per step. [`SkipRuns`]
+//! hands a ray's samples to an integrator as empty and occupied runs.
 
 mod macrocell;
+mod runs;
 mod skip;
 
 pub use macrocell::MacrocellGrid;
+pub use runs::{RunKind, SampleRun, SkipRuns};
 pub use skip::{CellClass, SkipGrid};

@@ -2,7 +2,7 @@
 
 use glam::{Vec3, Vec4};
 
-use super::{FrameContext, RaySegment};
+use super::{FrameContext, Integrator, Occupancy, RaySegment};
 use crate::volume::Volume;
 
 /// Running sum and count.
@@ -14,10 +14,15 @@ pub struct AvgState {
     pub count: u64,
 }
 
-impl AvgState {
+impl Integrator for AvgState {
+    fn occupancy(_iso_value: f32) -> Occupancy {
+        // Every sample counts towards the mean: nothing is skipped.
+        Occupancy::Every
+    }
+
     /// Adds samples `k0..k1`. Every sample counts, so nothing is skipped.
     #[inline]
-    pub fn integrate<V: Volume>(
+    fn integrate<V: Volume>(
         &mut self,
         ctx: &FrameContext<'_, V>,
         seg: &RaySegment,
@@ -36,7 +41,7 @@ impl AvgState {
     }
 
     /// Grey `mean / max` with `A = 1` when the ray had any sample.
-    pub fn resolve<V: Volume>(&self, ctx: &FrameContext<'_, V>) -> Vec4 {
+    fn resolve<V: Volume>(&self, ctx: &FrameContext<'_, V>) -> Vec4 {
         if self.count == 0 {
             return Vec4::ZERO;
         }

@@ -1,9 +1,9 @@
 //! Direct volume rendering: front-to-back compositing with ERT and ESS.
 
-use glam::{UVec3, Vec3};
+use glam::{UVec3, Vec3, Vec4};
 
-use super::{FrameContext, RaySegment};
-use crate::accel::CellClass;
+use super::{FrameContext, Integrator, Occupancy, RaySegment};
+use crate::accel::RunKind;
 use crate::volume::{Volume, interpolate, stencil_gradient};
 
 /// Accumulated colour (premultiplied) and opacity of a ray.
@@ -17,59 +17,55 @@ pub struct DvrState {
     pub terminated: bool,
 }
 
-impl DvrState {
+impl Integrator for DvrState {
+    const CULLS_EMPTY_BRICKS: bool = true;
+
+    fn occupancy(_iso_value: f32) -> Occupancy {
+        Occupancy::Visible
+    }
+
     /// Composites samples `k0..k1` (clamped to the ray); returns how many were taken.
     #[inline]
-    pub fn integrate<V: Volume>(
+    fn integrate<V: Volume>(
         &mut self,
         ctx: &FrameContext<'_, V>,
         seg: &RaySegment,
         k0: u32,
         k1: u32,
     ) -> u64 {
-        let k1 = k1.min(seg.count);
         let mut taken = 0u64;
-        let mut k = k0;
         let threshold = ctx.ert.unwrap_or(f32::INFINITY);
-        while k < k1 && !self.terminated {
-            // Decide how far we may march sample by sample.
-            let run_end = if ctx.ess {
-                match ctx.skip.classify(seg.pos(k)) {
-                    CellClass::Occupied { bounds, index } => {
-                        let t_exit = bounds.exit(seg.origin, seg.inv_dir);
-                        let end = seg.first_index_at_or_after(t_exit).max(k + 1).min(k1);
-                        if ctx.macrocells.uniform[index] {
-                            taken += self.composite_uniform(
-                                ctx,
-                                ctx.macrocells.ranges[index].0,
-                                end - k,
-                                threshold,
-                            );
-                            k = end;
-                            continue;
-                        }
-                        end
-                    }
-                    CellClass::Empty(bounds) => {
-                        // Jump past the empty box around this cell.
-                        let t_exit = bounds.exit(seg.origin, seg.inv_dir);
-                        k = seg.first_index_at_or_after(t_exit).max(k + 1);
-                        continue;
-                    }
+        for run in ctx.runs(seg, k0, k1) {
+            if self.terminated {
+                break;
+            }
+            let n = run.end - run.start;
+            match run.kind {
+                RunKind::Empty => {}
+                RunKind::Cell(i) if ctx.macrocells.uniform[i] => {
+                    let v = ctx.macrocells.ranges[i].0;
+                    taken += self.composite_uniform(ctx, v, n, threshold);
                 }
-            } else {
-                k1
-            };
-            let (taken_here, done) = self.march(ctx, seg, k, run_end, threshold);
-            taken += taken_here;
-            k = run_end;
-            if done {
-                self.terminated = true;
+                RunKind::Cell(_) | RunKind::Unknown => {
+                    let (taken_here, done) = self.march(ctx, seg, run.start, run.end, threshold);
+                    taken += taken_here;
+                    self.terminated |= done;
+                }
             }
         }
         taken
     }
 
+    fn is_done(&self) -> bool {
+        self.terminated
+    }
+
+    fn resolve<V: Volume>(&self, _ctx: &FrameContext<'_, V>) -> Vec4 {
+        self.color.extend(self.alpha)
+    }
+}
+
+impl DvrState {
     /// Samples `k..end` one by one. Kept apart from the skipping logic and
     /// working on local copies of the state, so the hot loop keeps everything
     /// in registers. Returns (samples taken, terminated).

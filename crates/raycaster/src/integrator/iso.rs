@@ -2,7 +2,8 @@
 
 use glam::{Vec3, Vec4};
 
-use super::{FrameContext, RaySegment};
+use super::{FrameContext, Integrator, Occupancy, RaySegment};
+use crate::accel::RunKind;
 use crate::volume::Volume;
 
 /// The search state of an iso ray.
@@ -14,15 +15,21 @@ pub struct IsoState {
     pub hit: Option<(Vec3, Vec3)>,
 }
 
-impl IsoState {
+impl Integrator for IsoState {
+    const SPLITS_RAYS: bool = false;
+
+    fn occupancy(iso_value: f32) -> Occupancy {
+        Occupancy::Straddles(iso_value)
+    }
+
     /// Searches samples `k0..k1` for a sign change of `value − iso`.
     ///
-    /// ESS: cells whose range excludes the iso value are skipped, but the
-    /// first sample into and the last sample out of an empty run are taken,
-    /// so every pair of consecutive samples that could bracket a crossing is
-    /// still compared.
+    /// ESS: runs in cells whose range excludes the iso value are skipped,
+    /// but the first sample into and the last sample out of an empty run are
+    /// taken, so every pair of consecutive samples that could bracket a
+    /// crossing is still compared.
     #[inline]
-    pub fn integrate<V: Volume>(
+    fn integrate<V: Volume>(
         &mut self,
         ctx: &FrameContext<'_, V>,
         seg: &RaySegment,
@@ -31,36 +38,61 @@ impl IsoState {
     ) -> u64 {
         let k1 = k1.min(seg.count);
         let mut taken = 0u64;
-        let mut k = k0;
-        while k < k1 && self.hit.is_none() {
-            if ctx.ess {
-                let p = seg.pos(k);
-                if let Some(b) = ctx.skip.empty_box(p) {
-                    let next = seg
-                        .first_index_at_or_after(b.exit(seg.origin, seg.inv_dir))
-                        .max(k + 1);
-                    // Close the pair (k − 1, k), then open the pair
-                    // (next − 1, next); the samples between lie in the empty
-                    // box, on one side of the iso value.
-                    let mut visited = false;
-                    if self.prev.is_some() {
-                        taken += self.visit(ctx, seg, k);
-                        visited = true;
-                    }
-                    let last = next - 1;
-                    if last < k1 && (last > k || !visited) {
-                        taken += self.visit(ctx, seg, last);
-                    }
-                    k = next;
-                    continue;
-                }
+        for run in ctx.runs(seg, k0, k1) {
+            if self.hit.is_some() {
+                break;
             }
-            taken += self.visit(ctx, seg, k);
-            k += 1;
+            if run.kind != RunKind::Empty {
+                for k in run.start..run.end {
+                    taken += self.visit(ctx, seg, k);
+                    if self.hit.is_some() {
+                        break;
+                    }
+                }
+                continue;
+            }
+            // Close the pair (start − 1, start), then open the pair
+            // (end − 1, end); the samples between lie in the empty box, on
+            // one side of the iso value.
+            let mut visited = false;
+            if self.prev.is_some() {
+                taken += self.visit(ctx, seg, run.start);
+                visited = true;
+            }
+            let last = run.end - 1;
+            if last < k1 && (last > run.start || !visited) {
+                taken += self.visit(ctx, seg, last);
+            }
         }
         taken
     }
 
+    fn is_done(&self) -> bool {
+        self.hit.is_some()
+    }
+
+    /// The TF colour at the iso value, Phong-shaded when shading is on; opaque.
+    fn resolve<V: Volume>(&self, ctx: &FrameContext<'_, V>) -> Vec4 {
+        let Some((p, dir)) = self.hit else {
+            return Vec4::ZERO;
+        };
+        let c = ctx.tf.evaluate(ctx.iso_value).truncate();
+        let rgb = match &ctx.shading {
+            Some(ph) => {
+                let mut ph = *ph;
+                ph.gradient_threshold = 0.0;
+                match ph.terms(ctx.volume.gradient(p), dir) {
+                    Some((d, s)) => c * d + Vec3::splat(s),
+                    None => c * ph.ka,
+                }
+            }
+            None => c,
+        };
+        rgb.extend(1.0)
+    }
+}
+
+impl IsoState {
     #[inline]
     fn visit<V: Volume>(&mut self, ctx: &FrameContext<'_, V>, seg: &RaySegment, k: u32) -> u64 {
         if self.hit.is_some() {
@@ -89,25 +121,5 @@ impl IsoState {
         }
         self.prev = Some((k, v));
         1
-    }
-
-    /// The TF colour at the iso value, Phong-shaded when shading is on; opaque.
-    pub fn resolve<V: Volume>(&self, ctx: &FrameContext<'_, V>) -> Vec4 {
-        let Some((p, dir)) = self.hit else {
-            return Vec4::ZERO;
-        };
-        let c = ctx.tf.evaluate(ctx.iso_value).truncate();
-        let rgb = match &ctx.shading {
-            Some(ph) => {
-                let mut ph = *ph;
-                ph.gradient_threshold = 0.0;
-                match ph.terms(ctx.volume.gradient(p), dir) {
-                    Some((d, s)) => c * d + Vec3::splat(s),
-                    None => c * ph.ka,
-                }
-            }
-            None => c,
-        };
-        rgb.extend(1.0)
     }
 }

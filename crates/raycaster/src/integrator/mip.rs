@@ -2,7 +2,8 @@
 
 use glam::Vec4;
 
-use super::{FrameContext, RaySegment};
+use super::{FrameContext, Integrator, Occupancy, RaySegment};
+use crate::accel::RunKind;
 use crate::volume::Volume;
 
 /// Running maximum of a ray.
@@ -20,50 +21,42 @@ impl Default for MipState {
     }
 }
 
-impl MipState {
+impl Integrator for MipState {
+    fn occupancy(_iso_value: f32) -> Occupancy {
+        // Every cell is visited; the running maximum decides.
+        Occupancy::Every
+    }
+
     /// Folds samples `k0..k1` into the maximum. With ESS, macrocells whose
     /// largest value cannot raise the maximum are jumped over.
     #[inline]
-    pub fn integrate<V: Volume>(
+    fn integrate<V: Volume>(
         &mut self,
         ctx: &FrameContext<'_, V>,
         seg: &RaySegment,
         k0: u32,
         k1: u32,
     ) -> u64 {
-        let k1 = k1.min(seg.count);
         let mut taken = 0u64;
-        let mut k = k0;
-        let cells = ctx.macrocells;
-        let m = cells.cell as f32;
-        while k < k1 {
-            let run_end = if ctx.ess {
-                let p = seg.pos(k);
-                let c = cells.cell_of(p);
-                let lo = c.as_vec3() * m;
-                let t_exit = crate::geometry::Aabb::new(lo, lo + glam::Vec3::splat(m))
-                    .exit(seg.origin, seg.inv_dir);
-                let next = seg.first_index_at_or_after(t_exit).max(k + 1);
-                if cells.ranges[cells.index(c)].1 <= self.max {
-                    k = next;
-                    continue;
-                }
-                next.min(k1)
-            } else {
-                k1
-            };
-            while k < run_end {
-                let v = ctx.volume.sample(seg.pos(k));
-                taken += 1;
-                k += 1;
-                self.max = self.max.max(v);
+        for run in ctx.runs(seg, k0, k1) {
+            if let RunKind::Cell(i) = run.kind
+                && ctx.macrocells.ranges[i].1 <= self.max
+            {
+                continue;
             }
+            if run.kind == RunKind::Empty {
+                continue;
+            }
+            for k in run.start..run.end {
+                self.max = self.max.max(ctx.volume.sample(seg.pos(k)));
+            }
+            taken += (run.end - run.start) as u64;
         }
         taken
     }
 
     /// `C = a·c, A = a` of the TF at the maximum (no step correction).
-    pub fn resolve<V: Volume>(&self, ctx: &FrameContext<'_, V>) -> Vec4 {
+    fn resolve<V: Volume>(&self, ctx: &FrameContext<'_, V>) -> Vec4 {
         if self.max == f32::NEG_INFINITY {
             return Vec4::ZERO;
         }

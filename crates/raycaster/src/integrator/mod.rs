@@ -1,29 +1,36 @@
-//! Integrators: what happens along one ray (SPEC §5).
+//! Integrators: what happens along one ray.
 //!
-//! Every mode walks the same sample positions `t_k = t_in + k·s`, computed
-//! from `k` (never by accumulating `t += s`), so any renderer that splits a
-//! ray into pieces — per brick, per tile — takes exactly the same samples.
-//! A [`RaySegment`] is a range of those indices; the integrators carry their
-//! state in a small struct so that a ray can be integrated piece by piece.
+//! A ray is a [`RaySegment`]: sample positions `t_k = t_in + k·s` for
+//! `k = 0, 1, …` while `t_k <= t_out`, clipped to the volume's box. Each mode
+//! is an [`Integrator`]: a small per-ray state that takes the samples of a
+//! range of indices (so a renderer can integrate a ray piece by piece, brick
+//! by brick) and finally resolves to a premultiplied colour. Empty-space
+//! skipping reaches an integrator as runs of sample indices
+//! ([`FrameContext::runs`]): empty runs it may jump over, occupied ones with
+//! their macrocell.
+//!
+//! Adding a mode: a file with a state type implementing [`Integrator`], a
+//! [`RenderMode`] variant, and its arm in [`RenderMode::visit`].
 
 mod avg;
 mod dvr;
 mod iso;
 mod mip;
+mod segment;
 mod shading;
 
 pub use avg::AvgState;
 pub use dvr::DvrState;
 pub use iso::IsoState;
 pub use mip::MipState;
+pub use segment::RaySegment;
 pub use shading::Phong;
 
-use glam::{Vec3, Vec4};
+use glam::Vec4;
 
-use crate::accel::{MacrocellGrid, SkipGrid};
-use crate::geometry::Ray;
+use crate::accel::{MacrocellGrid, SkipGrid, SkipRuns};
 use crate::transfer::{TfLut, TransferFunction};
-use crate::volume::{Grid, Volume};
+use crate::volume::Volume;
 
 /// The rendering mode.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
@@ -40,17 +47,6 @@ pub enum RenderMode {
 }
 
 impl RenderMode {
-    /// Parses `dvr`, `mip`, `avg` or `iso`.
-    pub fn parse(s: &str) -> Option<Self> {
-        Some(match s {
-            "dvr" => RenderMode::Dvr,
-            "mip" => RenderMode::Mip,
-            "avg" | "xray" | "x-ray" => RenderMode::Avg,
-            "iso" => RenderMode::Iso,
-            _ => return None,
-        })
-    }
-
     /// The name used on command lines.
     pub fn name(self) -> &'static str {
         match self {
@@ -60,82 +56,87 @@ impl RenderMode {
             RenderMode::Iso => "iso",
         }
     }
+
+    /// Runs `visitor` with the integrator of this mode: the one place a mode
+    /// becomes a type.
+    pub fn visit<T: IntegratorVisitor>(self, visitor: T) -> T::Output {
+        match self {
+            RenderMode::Dvr => visitor.visit::<DvrState>(),
+            RenderMode::Mip => visitor.visit::<MipState>(),
+            RenderMode::Avg => visitor.visit::<AvgState>(),
+            RenderMode::Iso => visitor.visit::<IsoState>(),
+        }
+    }
 }
 
-/// One ray prepared for marching through a volume: in voxel space, with its
-/// sample index range.
-#[derive(Debug, Clone, Copy)]
-pub struct RaySegment {
-    /// Ray origin in voxel space.
-    pub origin: Vec3,
-    /// Ray direction in voxel space per world unit of `t`.
-    pub dir: Vec3,
-    /// `1 / dir`, for box exits.
-    pub inv_dir: Vec3,
-    /// World direction (unit), for shading.
-    pub world_dir: Vec3,
-    /// Entry parameter into the volume's box.
-    pub t_in: f32,
-    /// Sampling step (world units).
-    pub step: f32,
-    /// `1 / step`.
-    pub inv_step: f32,
-    /// Number of samples on the whole ray: indices `0..count`.
-    pub count: u32,
+/// Code that runs with the integrator type of a [`RenderMode`].
+pub trait IntegratorVisitor {
+    /// What the visit returns.
+    type Output;
+    /// Runs with `I` the mode's integrator.
+    fn visit<I: Integrator>(self) -> Self::Output;
 }
 
-impl RaySegment {
-    /// Clips a world-space ray (unit direction) against the grid's box;
-    /// `None` when it misses.
-    #[inline]
-    pub fn new(grid: &Grid, ray: &Ray, step: f32) -> Option<Self> {
-        let (t_in, t_out) = grid.bounds().intersect(ray)?;
-        // Largest k with t_in + k·s <= t_out, computed as the renderers will.
-        let mut last = ((t_out - t_in) / step).floor().max(0.0) as u32;
-        while last > 0 && t_in + last as f32 * step > t_out {
-            last -= 1;
+/// Which macrocells a mode may skip, given the frame's TF table and options.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub enum Occupancy {
+    /// A cell is occupied when the TF gives any of its values opacity.
+    Visible,
+    /// A cell is occupied when its value range holds this value.
+    Straddles(f32),
+    /// Every cell is occupied: the integrator decides per cell from the
+    /// macrocell ranges (e.g. MIP skips cells that cannot raise its maximum).
+    Every,
+}
+
+impl Occupancy {
+    /// The skip grid of this occupancy over `cells`.
+    pub fn skip_grid(self, cells: &MacrocellGrid, lut: &TfLut) -> SkipGrid {
+        match self {
+            Occupancy::Visible => SkipGrid::build(cells, |lo, hi| lut.any_visible(lo, hi)),
+            Occupancy::Straddles(v) => SkipGrid::build(cells, |lo, hi| lo <= v && v <= hi),
+            Occupancy::Every => SkipGrid::all_occupied(cells),
         }
-        while t_in + (last + 1) as f32 * step <= t_out {
-            last += 1;
-        }
-        let dir = ray.dir / grid.spacing;
-        Some(RaySegment {
-            origin: grid.world_to_voxel(ray.origin),
-            dir,
-            inv_dir: dir.recip(),
-            world_dir: ray.dir,
-            t_in,
-            step,
-            inv_step: 1.0 / step,
-            count: last + 1,
-        })
+    }
+}
+
+/// A rendering mode's per-ray state and the rule that advances it.
+///
+/// Renderers are generic over the integrator (one monomorphised tile loop
+/// per mode and volume type), so a state is plain data in a buffer, and
+/// calls are never dispatched per sample or per pixel.
+pub trait Integrator: Copy + Default + Send + Sync + std::fmt::Debug + 'static {
+    /// Whether a brick whose macrocells are all empty for the frame's skip
+    /// grid can be left out of the frame (true when empty space contributes
+    /// nothing, as in DVR).
+    const CULLS_EMPTY_BRICKS: bool = false;
+
+    /// Whether splitting rays into pieces per brick pays: false for modes
+    /// that can drop nothing up front, whose rays the object renderer then
+    /// integrates whole.
+    const SPLITS_RAYS: bool = true;
+
+    /// Which macrocells this mode may skip (`iso_value` is the frame's iso
+    /// value, for modes that look for one).
+    fn occupancy(iso_value: f32) -> Occupancy;
+
+    /// Integrates samples `k0..k1` of `seg` (clamped to the ray); returns
+    /// the number of samples taken.
+    fn integrate<V: Volume>(
+        &mut self,
+        ctx: &FrameContext<'_, V>,
+        seg: &RaySegment,
+        k0: u32,
+        k1: u32,
+    ) -> u64;
+
+    /// True when nothing more can change this ray (ERT, a hit).
+    fn is_done(&self) -> bool {
+        false
     }
 
-    /// World parameter of sample `k`.
-    #[inline(always)]
-    pub fn t(&self, k: u32) -> f32 {
-        self.t_in + k as f32 * self.step
-    }
-
-    /// Voxel-space position of sample `k`.
-    #[inline(always)]
-    pub fn pos(&self, k: u32) -> Vec3 {
-        self.origin + self.dir * self.t(k)
-    }
-
-    /// A sample index at or just before the first sample at or after
-    /// parameter `t` (saturating). Callers use it as the end of a run of
-    /// samples inside a box whose exit is `t`, or as where to resume after
-    /// skipping such a box: it may err by one sample early (harmless: that
-    /// sample is taken) but never late (which would skip a sample outside an
-    /// empty box).
-    #[inline(always)]
-    pub fn first_index_at_or_after(&self, t: f32) -> u32 {
-        let x = (t - self.t_in) * self.inv_step - 1e-3;
-        // ceil without a libm call; `as` saturates negatives and NaN to 0.
-        let k = x as u32;
-        k + ((k as f32) < x) as u32
-    }
+    /// Premultiplied colour and opacity of the finished ray.
+    fn resolve<V: Volume>(&self, ctx: &FrameContext<'_, V>) -> Vec4;
 }
 
 /// Everything an integrator needs for one frame: the volume, the tabulated
@@ -163,65 +164,11 @@ pub struct FrameContext<'a, V: Volume> {
     pub avg_norm: f32,
 }
 
-/// The state of one ray in any mode, so renderers can hold a buffer of them.
-#[derive(Debug, Clone, Copy)]
-pub enum RayState {
-    /// DVR accumulation.
-    Dvr(DvrState),
-    /// MIP running maximum.
-    Mip(MipState),
-    /// Running sum for the mean.
-    Avg(AvgState),
-    /// Iso search.
-    Iso(IsoState),
-}
-
-impl RayState {
-    /// The initial state for `mode`.
-    pub fn new(mode: RenderMode) -> Self {
-        match mode {
-            RenderMode::Dvr => RayState::Dvr(DvrState::default()),
-            RenderMode::Mip => RayState::Mip(MipState::default()),
-            RenderMode::Avg => RayState::Avg(AvgState::default()),
-            RenderMode::Iso => RayState::Iso(IsoState::default()),
-        }
-    }
-
-    /// True when nothing more can change this ray (ERT or an iso hit).
-    #[inline]
-    pub fn is_done(&self) -> bool {
-        match self {
-            RayState::Dvr(s) => s.terminated,
-            RayState::Iso(s) => s.hit.is_some(),
-            _ => false,
-        }
-    }
-
-    /// Integrates samples `k0..k1` of `seg` into the state; returns the
-    /// number of samples taken.
-    #[inline]
-    pub fn integrate<V: Volume>(
-        &mut self,
-        ctx: &FrameContext<'_, V>,
-        seg: &RaySegment,
-        k0: u32,
-        k1: u32,
-    ) -> u64 {
-        match self {
-            RayState::Dvr(s) => s.integrate(ctx, seg, k0, k1),
-            RayState::Mip(s) => s.integrate(ctx, seg, k0, k1),
-            RayState::Avg(s) => s.integrate(ctx, seg, k0, k1),
-            RayState::Iso(s) => s.integrate(ctx, seg, k0, k1),
-        }
-    }
-
-    /// Premultiplied colour and opacity of the finished ray.
-    pub fn resolve<V: Volume>(&self, ctx: &FrameContext<'_, V>) -> Vec4 {
-        match self {
-            RayState::Dvr(s) => s.color.extend(s.alpha),
-            RayState::Mip(s) => s.resolve(ctx),
-            RayState::Avg(s) => s.resolve(ctx),
-            RayState::Iso(s) => s.resolve(ctx),
-        }
+impl<V: Volume> FrameContext<'_, V> {
+    /// The runs of samples `k0..k1` of `seg`, empty or occupied by the
+    /// frame's skip grid; one run of unknown occupancy when ESS is off.
+    #[inline(always)]
+    pub fn runs<'s>(&'s self, seg: &'s RaySegment, k0: u32, k1: u32) -> SkipRuns<'s> {
+        SkipRuns::new(self.ess.then_some(self.skip), seg, k0, k1)
     }
 }

@@ -49,7 +49,10 @@ impl Frame {
         )
         .map_err(|e| match e {
             image::ImageError::IoError(io) => Error::io(path, io),
-            other => Error::InvalidArgument(format!("{}: {other}", path.display())),
+            other => Error::Image {
+                path: path.to_path_buf(),
+                message: other.to_string(),
+            },
         })
     }
 }

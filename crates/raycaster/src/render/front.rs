@@ -362,7 +362,11 @@ impl RendererFront {
         let thread = std::thread::Builder::new()
             .name(format!("raycaster-front-{name}"))
             .spawn(move || worker.run())
-            .map_err(|e| Error::InvalidArgument(format!("cannot start the render thread: {e}")))?;
+            .map_err(|e| Error::Threads {
+                count: 1,
+                role: "renderer front",
+                source: e,
+            })?;
         Ok(RendererFront {
             commands,
             generation,

@@ -16,17 +16,17 @@
 //! object renderer, the fastest measured), and [`RendererFront`] runs any
 //! renderer on its own thread behind an asynchronous handle.
 //!
-//! On the benchmark frame (800³ "shapes" volume, 700×700, step 0.2, `shapes`
-//! TF, ERT+ESS) on the 2-core development machine, ms per frame:
-//!
-//! | file | serial | tiles 1 / 2 threads | object 1 / 2 threads |
-//! |---|---|---|---|
-//! | linear | 391 | 384 / 192 | 326 / 167 |
-//! | bricked (B = 16) | 364 | 362 / 186 | 312 / 156 |
+//! Every renderer runs its frames through one frame driver (`driver.rs`):
+//! it prepares the frame, picks the volume and integrator types once,
+//! times the frame and assembles the film; a renderer supplies only its
+//! scheduling. The README compares the renderers' speed.
 
+mod driver;
+mod film;
 mod frame;
 pub mod front;
 pub mod object;
+mod options;
 mod plan;
 mod serial;
 mod tiled;
@@ -81,10 +81,9 @@ pub trait Renderer: Send {
     ) -> Result<Frame> {
         match self.render_cancellable(scene, camera, tf, options, Cancel::never())? {
             Some(frame) => Ok(frame),
-            None => Err(crate::Error::InvalidArgument(format!(
-                "the {} renderer stopped a frame that could not be cancelled",
-                self.name()
-            ))),
+            None => Err(crate::Error::Cancelled {
+                renderer: self.name(),
+            }),
         }
     }
 }

@@ -1,64 +1,20 @@
-//! Per-frame preparation shared by all renderers: options, the tabulated TF
-//! and the skip grid (cached while TF, step and mode stay the same).
+//! Per-frame preparation shared by all renderers: the validated camera and
+//! step, the tabulated TF and the skip grid (cached while TF, step and mode
+//! stay the same).
 
 use std::sync::Arc;
-
-use glam::Vec3;
 
 use crate::accel::SkipGrid;
 use crate::camera::{Camera, CameraFrame, PixelRect};
 use crate::error::{Error, Result};
-use crate::integrator::{FrameContext, Phong, RaySegment, RayState, RenderMode};
-use crate::render::FrameStats;
+use crate::integrator::{
+    FrameContext, Integrator, IntegratorVisitor, Occupancy, Phong, RenderMode,
+};
 use crate::scene::Scene;
 use crate::transfer::{TfLut, TransferFunction};
-use crate::volume::{Grid, Volume};
+use crate::volume::Volume;
 
-/// What to render and how.
-#[derive(Debug, Clone, PartialEq)]
-pub struct RenderOptions {
-    /// Integration mode.
-    pub mode: RenderMode,
-    /// Sampling step in world units; `None` = half the smallest spacing.
-    pub step: Option<f32>,
-    /// Early ray termination.
-    pub ert: bool,
-    /// Opacity at which ERT stops a ray.
-    pub ert_threshold: f32,
-    /// Empty-space skipping.
-    pub ess: bool,
-    /// Phong shading.
-    pub shading: bool,
-    /// Phong coefficients; `None` = defaults scaled to the data's range.
-    pub phong: Option<Phong>,
-    /// Iso value for [`RenderMode::Iso`].
-    pub iso_value: f32,
-    /// Background colour, 0..1.
-    pub background: Vec3,
-}
-
-impl Default for RenderOptions {
-    fn default() -> Self {
-        RenderOptions {
-            mode: RenderMode::Dvr,
-            step: None,
-            ert: true,
-            ert_threshold: 0.99,
-            ess: true,
-            shading: true,
-            phong: None,
-            iso_value: 128.0,
-            background: Vec3::ZERO,
-        }
-    }
-}
-
-impl RenderOptions {
-    /// The step actually used for `grid`.
-    pub fn step_for(&self, grid: &Grid) -> f32 {
-        self.step.unwrap_or(grid.spacing.min_element() * 0.5)
-    }
-}
+pub use super::options::RenderOptions;
 
 /// Identity of what the cached LUT and skip grid were built for.
 #[derive(Debug, Clone, PartialEq)]
@@ -98,16 +54,15 @@ impl PlanCache {
             return v.clone();
         }
         let lut = TfLut::new(tf, step);
-        let cells = scene.macrocells();
-        let skip = match options.mode {
-            RenderMode::Dvr => SkipGrid::build(cells, |lo, hi| lut.any_visible(lo, hi)),
-            RenderMode::Iso => {
-                let iso = options.iso_value;
-                SkipGrid::build(cells, |lo, hi| lo <= iso && iso <= hi)
+        struct OccupancyOf(f32);
+        impl IntegratorVisitor for OccupancyOf {
+            type Output = Occupancy;
+            fn visit<I: Integrator>(self) -> Occupancy {
+                I::occupancy(self.0)
             }
-            // MIP skips with the macrocell maxima directly; avg never skips.
-            RenderMode::Mip | RenderMode::Avg => SkipGrid::all_occupied(cells),
-        };
+        }
+        let occupancy = options.mode.visit(OccupancyOf(options.iso_value));
+        let skip = occupancy.skip_grid(scene.macrocells(), &lut);
         let v = Arc::new((lut, skip));
         self.last = Some((key, v.clone()));
         v
@@ -128,33 +83,37 @@ impl FramePlan {
     pub fn new(
         cache: &mut PlanCache,
         scene: &Scene,
-        grid: &Grid,
         camera: &Camera,
         tf: &TransferFunction,
         options: &RenderOptions,
     ) -> Result<Self> {
+        let grid = scene.grid();
         let frame = camera.frame().ok_or_else(|| {
-            Error::InvalidArgument(format!(
-                "degenerate camera (position {}, look-at {}, up {}, fov {}, size {}x{})",
-                camera.position,
-                camera.target,
-                camera.up,
-                camera.fov_y_deg,
-                camera.width,
-                camera.height
-            ))
+            Error::option(
+                "camera",
+                format!(
+                    "degenerate (position {}, look-at {}, up {}, fov {}, size {}x{})",
+                    camera.position,
+                    camera.target,
+                    camera.up,
+                    camera.fov_y_deg,
+                    camera.width,
+                    camera.height
+                ),
+            )
         })?;
         let step = options.step_for(grid);
         if !(step.is_finite() && step > 0.0) {
-            return Err(Error::InvalidArgument(format!(
-                "step {step} must be finite and > 0"
-            )));
+            return Err(Error::option(
+                "step",
+                format!("{step} must be finite and > 0"),
+            ));
         }
         if !(options.ert_threshold > 0.0 && options.ert_threshold <= 1.0) {
-            return Err(Error::InvalidArgument(format!(
-                "ERT threshold {} must be in (0, 1]",
-                options.ert_threshold
-            )));
+            return Err(Error::option(
+                "ERT threshold",
+                format!("{} must be in (0, 1]", options.ert_threshold),
+            ));
         }
         let prepared = cache.get(scene, tf, step, options);
         Ok(FramePlan {
@@ -167,25 +126,26 @@ impl FramePlan {
         })
     }
 
-    /// The integrator context for this frame.
+    /// The integrators' view of this frame for the concretely typed
+    /// `volume` of `scene`.
     pub fn context<'a, V: Volume>(
         &'a self,
         volume: &'a V,
-        scene_cells: &'a crate::accel::MacrocellGrid,
-        value_range: (f32, f32),
+        scene: &'a Scene,
         tf: &'a TransferFunction,
         options: &RenderOptions,
     ) -> FrameContext<'a, V> {
+        let (lo, hi) = scene.value_range();
         let shading = options.shading.then(|| {
             options
                 .phong
-                .unwrap_or_else(|| Phong::for_value_range(value_range.1 - value_range.0))
+                .unwrap_or_else(|| Phong::for_value_range(hi - lo))
         });
         FrameContext {
             volume,
             tf,
             lut: &self.prepared.0,
-            macrocells: scene_cells,
+            macrocells: scene.macrocells(),
             skip: &self.prepared.1,
             ess: options.ess,
             ert: options.ert.then_some(options.ert_threshold),
@@ -194,39 +154,4 @@ impl FramePlan {
             avg_norm: <V::Sample as crate::sample::Sample>::TYPE.max_value(),
         }
     }
-
-    /// Background colour as bytes.
-    pub fn background_rgb(background: Vec3) -> [u8; 3] {
-        let b = to_bytes(background);
-        [b[0], b[1], b[2]]
-    }
-}
-
-/// Integrates the ray of pixel `(i, j)` and composites it over `background`.
-#[inline]
-pub(crate) fn render_pixel<V: Volume>(
-    ctx: &FrameContext<'_, V>,
-    plan: &FramePlan,
-    mode: RenderMode,
-    background: Vec3,
-    i: u32,
-    j: u32,
-    stats: &mut FrameStats,
-) -> [u8; 3] {
-    stats.rays += 1;
-    let ray = plan.camera.ray(i, j);
-    let Some(seg) = RaySegment::new(ctx.volume.grid(), &ray, plan.step) else {
-        return FramePlan::background_rgb(background);
-    };
-    let mut state = RayState::new(mode);
-    stats.samples += state.integrate(ctx, &seg, 0, seg.count);
-    let c = state.resolve(ctx);
-    to_bytes(c.truncate() + (1.0 - c.w) * background)
-}
-
-/// `round(255·clamp(x, 0, 1))` per channel.
-#[inline]
-pub(crate) fn to_bytes(c: Vec3) -> [u8; 3] {
-    let q = |x: f32| (x.clamp(0.0, 1.0) * 255.0).round() as u8;
-    [q(c.x), q(c.y), q(c.z)]
 }

@@ -1,17 +1,17 @@
-//! The serial reference renderer: every pixel on the calling thread, in order.
+//! The serial reference renderer: every pixel on the calling thread.
 
-use std::time::Instant;
-
-use super::plan::{FramePlan, PlanCache, RenderOptions, render_pixel};
-use super::{Cancel, Frame, FrameStats, Renderer};
+use super::driver::{FrameJob, Schedule, render_frame, render_tile};
+use super::film::Film;
+use super::plan::{PlanCache, RenderOptions};
+use super::{Cancel, Frame, Renderer};
 use crate::camera::Camera;
 use crate::error::Result;
+use crate::integrator::Integrator;
 use crate::scene::Scene;
 use crate::transfer::TransferFunction;
 use crate::volume::Volume;
-use crate::volume::VolumeVisitor;
 
-/// One thread, pixel by pixel: the reference the parallel renderers match.
+/// One thread, tile by tile: the reference the parallel renderers match.
 #[derive(Debug, Default)]
 pub struct SerialRenderer {
     cache: PlanCache,
@@ -24,44 +24,30 @@ impl SerialRenderer {
     }
 }
 
-/// Tile side (pixels) of the serial renderer's traversal order.
+/// Tile side (pixels) of the serial renderer's traversal order. Square
+/// tiles rather than scanlines: neighbouring rays then reuse each other's
+/// cache lines, which matters for volumes larger than the caches. The image
+/// is the same in any order.
 const SERIAL_TILE: u32 = 16;
 
-struct SerialPass<'a> {
-    plan: &'a FramePlan,
-    cells: &'a crate::accel::MacrocellGrid,
-    value_range: (f32, f32),
-    tf: &'a TransferFunction,
-    options: &'a RenderOptions,
-    cancel: Cancel<'a>,
-}
+struct InOrder;
 
-impl VolumeVisitor for SerialPass<'_> {
-    type Output = Option<(Vec<u8>, FrameStats)>;
-
-    fn visit<V: Volume>(self, volume: &V) -> Self::Output {
-        let plan = self.plan;
-        let ctx = plan.context(volume, self.cells, self.value_range, self.tf, self.options);
-        let bg = self.options.background;
-        let bg_rgb = FramePlan::background_rgb(bg);
-        let mut rgb = bg_rgb.repeat(plan.width as usize * plan.height as usize);
-        let mut stats = FrameStats::default();
-        // Square tiles rather than scanlines: neighbouring rays then reuse
-        // each other's cache lines, which matters for volumes larger than
-        // the caches. The image is the same in any order.
-        for t in plan.rect.tiles(SERIAL_TILE) {
-            if self.cancel.is_cancelled() {
+impl Schedule for InOrder {
+    fn run<V: Volume, I: Integrator>(
+        &mut self,
+        job: &FrameJob<'_, V>,
+        film: &mut Film,
+    ) -> Option<u64> {
+        let mut samples = 0;
+        for t in job.plan.rect.tiles(SERIAL_TILE) {
+            if job.cancel.is_cancelled() {
                 return None;
             }
-            for j in t.y0..t.y1 {
-                for i in t.x0..t.x1 {
-                    let px = render_pixel(&ctx, plan, self.options.mode, bg, i, j, &mut stats);
-                    let o = 3 * (j as usize * plan.width as usize + i as usize);
-                    rgb[o..o + 3].copy_from_slice(&px);
-                }
-            }
+            let (pixels, n) = render_tile::<V, I>(job, film, &t);
+            film.put_tile(&t, &pixels);
+            samples += n;
         }
-        Some((rgb, stats))
+        Some(samples)
     }
 }
 
@@ -82,24 +68,14 @@ impl Renderer for SerialRenderer {
         options: &RenderOptions,
         cancel: Cancel<'_>,
     ) -> Result<Option<Frame>> {
-        let start = Instant::now();
-        let plan = FramePlan::new(&mut self.cache, scene, scene.grid(), camera, tf, options)?;
-        let Some((rgb, mut stats)) = scene.volume().visit(SerialPass {
-            plan: &plan,
-            cells: scene.macrocells(),
-            value_range: scene.value_range(),
+        render_frame(
+            &mut InOrder,
+            &mut self.cache,
+            scene,
+            camera,
             tf,
             options,
             cancel,
-        }) else {
-            return Ok(None);
-        };
-        stats.time = start.elapsed();
-        Ok(Some(Frame {
-            width: plan.width,
-            height: plan.height,
-            rgb,
-            stats,
-        }))
+        )
     }
 }

@@ -1,0 +1,169 @@
+//! The frame driver: the one body every renderer runs a frame through.
+//!
+//! [`render_frame`] validates the options and prepares the frame (the
+//! [`FramePlan`]), reaches the volume's concrete type and the mode's
+//! [`Integrator`] (once per frame), times the frame, and assembles the
+//! [`Film`]. A renderer supplies only its scheduling, as a [`Schedule`]:
+//! which rays are integrated on which threads and in which order. The
+//! serial and tiled renderers share the tile loop, [`render_tile`].
+
+use std::time::Instant;
+
+use super::film::Film;
+use super::plan::{FramePlan, PlanCache, RenderOptions};
+use super::{Cancel, Frame, FrameStats};
+use crate::camera::{Camera, PixelRect};
+use crate::error::Result;
+use crate::integrator::{FrameContext, Integrator, IntegratorVisitor, RaySegment};
+use crate::scene::Scene;
+use crate::transfer::TransferFunction;
+use crate::volume::{Volume, VolumeVisitor};
+
+/// Everything a schedule needs to integrate a frame's rays.
+pub(crate) struct FrameJob<'a, V: Volume> {
+    /// The integrators' view of the frame.
+    pub ctx: FrameContext<'a, V>,
+    /// Camera frame, screen rectangle, step, prepared tables.
+    pub plan: &'a FramePlan,
+    /// The scene (for schedules that derive their own structures from it).
+    pub scene: &'a Scene,
+    /// The camera as given.
+    pub camera: &'a Camera,
+    /// The options as given.
+    pub options: &'a RenderOptions,
+    /// When to stop.
+    pub cancel: Cancel<'a>,
+}
+
+impl<V: Volume> FrameJob<'_, V> {
+    /// The ray of pixel `(i, j)` clipped to the volume, `None` when it
+    /// misses.
+    #[inline]
+    pub fn segment(&self, i: u32, j: u32) -> Option<RaySegment> {
+        RaySegment::new(
+            self.ctx.volume.grid(),
+            &self.plan.camera.ray(i, j),
+            self.plan.step,
+        )
+    }
+}
+
+/// How a renderer schedules the rays of a frame.
+pub(crate) trait Schedule {
+    /// Integrates the rays of `job.plan.rect` with integrator `I` onto
+    /// `film`; returns the samples taken, or `None` when `job.cancel` fired.
+    fn run<V: Volume, I: Integrator>(
+        &mut self,
+        job: &FrameJob<'_, V>,
+        film: &mut Film,
+    ) -> Option<u64>;
+}
+
+/// Renders one frame with `schedule` (see the module docs); `Ok(None)` when
+/// cancelled.
+pub(crate) fn render_frame<S: Schedule>(
+    schedule: &mut S,
+    cache: &mut PlanCache,
+    scene: &Scene,
+    camera: &Camera,
+    tf: &TransferFunction,
+    options: &RenderOptions,
+    cancel: Cancel<'_>,
+) -> Result<Option<Frame>> {
+    let start = Instant::now();
+    let plan = FramePlan::new(cache, scene, camera, tf, options)?;
+    let mut film = Film::new(plan.width, plan.height, options.background);
+
+    struct WithVolume<'a, S> {
+        schedule: &'a mut S,
+        plan: &'a FramePlan,
+        scene: &'a Scene,
+        camera: &'a Camera,
+        tf: &'a TransferFunction,
+        options: &'a RenderOptions,
+        cancel: Cancel<'a>,
+        film: &'a mut Film,
+    }
+    impl<S: Schedule> VolumeVisitor for WithVolume<'_, S> {
+        type Output = Option<u64>;
+        fn visit<V: Volume>(self, volume: &V) -> Option<u64> {
+            let job = FrameJob {
+                ctx: self.plan.context(volume, self.scene, self.tf, self.options),
+                plan: self.plan,
+                scene: self.scene,
+                camera: self.camera,
+                options: self.options,
+                cancel: self.cancel,
+            };
+            self.options.mode.visit(WithIntegrator {
+                schedule: self.schedule,
+                job: &job,
+                film: self.film,
+            })
+        }
+    }
+    struct WithIntegrator<'a, 'j, S, V: Volume> {
+        schedule: &'a mut S,
+        job: &'a FrameJob<'j, V>,
+        film: &'a mut Film,
+    }
+    impl<S: Schedule, V: Volume> IntegratorVisitor for WithIntegrator<'_, '_, S, V> {
+        type Output = Option<u64>;
+        fn visit<I: Integrator>(self) -> Option<u64> {
+            self.schedule.run::<V, I>(self.job, self.film)
+        }
+    }
+
+    let samples = scene.volume().visit(WithVolume {
+        schedule,
+        plan: &plan,
+        scene,
+        camera,
+        tf,
+        options,
+        cancel,
+        film: &mut film,
+    });
+    let Some(samples) = samples else {
+        return Ok(None);
+    };
+    if cancel.is_cancelled() {
+        return Ok(None);
+    }
+    Ok(Some(Frame {
+        width: plan.width,
+        height: plan.height,
+        rgb: film.into_rgb(),
+        stats: FrameStats {
+            rays: plan.rect.area(),
+            samples,
+            time: start.elapsed(),
+        },
+    }))
+}
+
+/// The tile loop: integrates every pixel of `rect` whole with `I` and
+/// returns the tile's RGB bytes (row-major) and the samples taken.
+#[inline]
+pub(crate) fn render_tile<V: Volume, I: Integrator>(
+    job: &FrameJob<'_, V>,
+    film: &Film,
+    rect: &PixelRect,
+) -> (Vec<u8>, u64) {
+    let mut rgb = Vec::with_capacity(3 * rect.area() as usize);
+    let mut samples = 0;
+    for j in rect.y0..rect.y1 {
+        for i in rect.x0..rect.x1 {
+            let px = match job.segment(i, j) {
+                None => film.background_rgb(),
+                Some(seg) => {
+                    let mut ray = I::default();
+                    samples += ray.integrate(&job.ctx, &seg, 0, seg.count);
+                    film.composite(ray.resolve(&job.ctx))
+                }
+            };
+            rgb.extend_from_slice(&px);
+        }
+    }
+    (rgb, samples)
+}

@@ -1,0 +1,61 @@
+//! [`Film`]: the image a frame is assembled on, over its background.
+
+use glam::{Vec3, Vec4};
+
+use crate::camera::PixelRect;
+
+/// An RGB8 image being filled tile by tile; pixels no ray touches keep the
+/// background.
+#[derive(Debug)]
+pub(crate) struct Film {
+    width: u32,
+    background: Vec3,
+    background_rgb: [u8; 3],
+    rgb: Vec<u8>,
+}
+
+impl Film {
+    /// A `width`×`height` film filled with `background` (0..1 per channel).
+    pub fn new(width: u32, height: u32, background: Vec3) -> Self {
+        let background_rgb = to_bytes(background);
+        Film {
+            width,
+            background,
+            background_rgb,
+            rgb: background_rgb.repeat(width as usize * height as usize),
+        }
+    }
+
+    /// The background as bytes.
+    pub fn background_rgb(&self) -> [u8; 3] {
+        self.background_rgb
+    }
+
+    /// The bytes of a ray's premultiplied colour `c` composited over the
+    /// background: `rgb = C + (1 − A)·background`.
+    #[inline]
+    pub fn composite(&self, c: Vec4) -> [u8; 3] {
+        to_bytes(c.truncate() + (1.0 - c.w) * self.background)
+    }
+
+    /// Copies a tile's pixels (row-major RGB of `rect`) into place.
+    pub fn put_tile(&mut self, rect: &PixelRect, pixels: &[u8]) {
+        let w = 3 * (rect.x1 - rect.x0) as usize;
+        for (row, j) in (rect.y0..rect.y1).enumerate() {
+            let o = 3 * (j as usize * self.width as usize + rect.x0 as usize);
+            self.rgb[o..o + w].copy_from_slice(&pixels[row * w..row * w + w]);
+        }
+    }
+
+    /// The finished image.
+    pub fn into_rgb(self) -> Vec<u8> {
+        self.rgb
+    }
+}
+
+/// `round(255·clamp(x, 0, 1))` per channel (no gamma).
+#[inline]
+pub(crate) fn to_bytes(c: Vec3) -> [u8; 3] {
+    let q = |x: f32| (x.clamp(0.0, 1.0) * 255.0).round() as u8;
+    [q(c.x), q(c.y), q(c.z)]
+}

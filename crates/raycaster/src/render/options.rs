@@ -1,0 +1,52 @@
+//! [`RenderOptions`]: what to render and how, beyond the camera and the TF.
+
+use glam::Vec3;
+
+use crate::integrator::{Phong, RenderMode};
+use crate::volume::Grid;
+
+/// What to render and how.
+#[derive(Debug, Clone, PartialEq)]
+pub struct RenderOptions {
+    /// Integration mode.
+    pub mode: RenderMode,
+    /// Sampling step in world units; `None` = half the smallest spacing.
+    pub step: Option<f32>,
+    /// Early ray termination.
+    pub ert: bool,
+    /// Opacity at which ERT stops a ray.
+    pub ert_threshold: f32,
+    /// Empty-space skipping.
+    pub ess: bool,
+    /// Phong shading.
+    pub shading: bool,
+    /// Phong coefficients; `None` = defaults scaled to the data's range.
+    pub phong: Option<Phong>,
+    /// Iso value for [`RenderMode::Iso`].
+    pub iso_value: f32,
+    /// Background colour, 0..1.
+    pub background: Vec3,
+}
+
+impl Default for RenderOptions {
+    fn default() -> Self {
+        RenderOptions {
+            mode: RenderMode::Dvr,
+            step: None,
+            ert: true,
+            ert_threshold: 0.99,
+            ess: true,
+            shading: true,
+            phong: None,
+            iso_value: 128.0,
+            background: Vec3::ZERO,
+        }
+    }
+}
+
+impl RenderOptions {
+    /// The step actually used for `grid`.
+    pub fn step_for(&self, grid: &Grid) -> f32 {
+        self.step.unwrap_or(grid.spacing.min_element() * 0.5)
+    }
+}
