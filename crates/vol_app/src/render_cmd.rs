@@ -99,9 +99,9 @@ pub fn run(args: &RenderArgs) -> Result<(), Error> {
     }
 
     let threads = args.threads as usize;
-    let mut renderer = match args.renderer {
-        RendererKind::Serial => AnyRenderer::Serial(SerialRenderer::new()),
-        RendererKind::Tiles => AnyRenderer::Tiles(TiledRenderer::new(
+    let mut renderer: Box<dyn Renderer> = match args.renderer {
+        RendererKind::Serial => Box::new(SerialRenderer::new()),
+        RendererKind::Tiles => Box::new(TiledRenderer::new(
             threads,
             args.tile.unwrap_or(TiledRenderer::DEFAULT_TILE),
         )?),
@@ -118,7 +118,7 @@ pub fn run(args: &RenderArgs) -> Result<(), Error> {
                 )
                 .into());
             }
-            AnyRenderer::Object(ObjectRenderer::with_config(ObjectConfig {
+            Box::new(ObjectRenderer::with_config(ObjectConfig {
                 render_threads: total - composite,
                 composite_threads: composite,
                 tile: args.tile.unwrap_or(ObjectConfig::DEFAULT_TILE),

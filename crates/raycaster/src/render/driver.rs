@@ -20,7 +20,7 @@ use crate::transfer::TransferFunction;
 use crate::volume::{Volume, VolumeVisitor};
 
 /// Everything a schedule needs to integrate a frame's rays.
-pub(crate) struct FrameJob<'a, V: Volume> {
+pub struct FrameJob<'a, V: Volume> {
     /// The integrators' view of the frame.
     pub ctx: FrameContext<'a, V>,
     /// Camera frame, screen rectangle, step, prepared tables.
@@ -48,8 +48,15 @@ impl<V: Volume> FrameJob<'_, V> {
     }
 }
 
-/// How a renderer schedules the rays of a frame.
-pub(crate) trait Schedule {
+/// How a renderer schedules the rays of a frame: the one part in which the
+/// renderers differ (see [`FrameRenderer`](super::FrameRenderer)).
+pub trait Schedule: Send {
+    /// Short name (`serial`, `tiles`, `object`).
+    const NAME: &'static str;
+
+    /// Worker threads used.
+    fn threads(&self) -> usize;
+
     /// Integrates the rays of `job.plan.rect` with integrator `I` onto
     /// `film`; returns the samples taken, or `None` when `job.cancel` fired.
     fn run<V: Volume, I: Integrator>(

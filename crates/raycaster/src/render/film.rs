@@ -7,7 +7,7 @@ use crate::camera::PixelRect;
 /// An RGB8 image being filled tile by tile; pixels no ray touches keep the
 /// background.
 #[derive(Debug)]
-pub(crate) struct Film {
+pub struct Film {
     width: u32,
     background: Vec3,
     background_rgb: [u8; 3],

@@ -71,127 +71,12 @@ use std::thread::JoinHandle;
 use crossbeam_channel::{Receiver, Sender, TrySendError};
 use parking_lot::Mutex;
 
-use super::object::resolve_threads;
-use super::{
-    Cancel, Frame, FrameStats, ObjectRenderer, RenderOptions, Renderer, SerialRenderer,
-    TiledRenderer,
-};
+use super::{Cancel, Frame, FrameStats, RenderOptions, Renderer};
 use crate::camera::Camera;
 use crate::error::{Error, Result};
 use crate::scene::Scene;
 use crate::transfer::TransferFunction;
 use crate::volume::Grid;
-
-/// The renderers of this crate, by name.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, Default)]
-pub enum RendererKind {
-    /// [`SerialRenderer`]: one thread, the reference.
-    Serial,
-    /// [`TiledRenderer`]: screen tiles on a thread pool.
-    Tiles,
-    /// [`ObjectRenderer`]: bricks front to back into tiles. The default: the
-    /// fastest measured — on the benchmark frame (800³ shapes, 700×700,
-    /// 2 threads) 156 ms (bricked file) and 167 ms (linear) against 186 ms
-    /// and 192 ms for tiles, and 20–35% ahead in other views.
-    #[default]
-    Object,
-}
-
-impl RendererKind {
-    /// All kinds.
-    pub const ALL: [RendererKind; 3] = [
-        RendererKind::Serial,
-        RendererKind::Tiles,
-        RendererKind::Object,
-    ];
-
-    /// Parses `serial`, `tiles` or `object`.
-    pub fn parse(s: &str) -> Option<Self> {
-        Some(match s {
-            "serial" => RendererKind::Serial,
-            "tiles" | "tiled" => RendererKind::Tiles,
-            "object" => RendererKind::Object,
-            _ => return None,
-        })
-    }
-
-    /// The name used on command lines.
-    pub fn name(self) -> &'static str {
-        match self {
-            RendererKind::Serial => "serial",
-            RendererKind::Tiles => "tiles",
-            RendererKind::Object => "object",
-        }
-    }
-}
-
-/// Any renderer of this crate, chosen at run time.
-#[derive(Debug)]
-pub enum AnyRenderer {
-    /// The serial reference.
-    Serial(SerialRenderer),
-    /// Screen-parallel tiles.
-    Tiles(TiledRenderer),
-    /// Object-parallel bricks.
-    Object(ObjectRenderer),
-}
-
-impl AnyRenderer {
-    /// A renderer of `kind` with `threads` threads in all (0 = one per
-    /// core; the serial renderer always uses one) and default options.
-    pub fn new(kind: RendererKind, threads: usize) -> Result<Self> {
-        Ok(match kind {
-            RendererKind::Serial => AnyRenderer::Serial(SerialRenderer::new()),
-            RendererKind::Tiles => AnyRenderer::Tiles(TiledRenderer::new(
-                resolve_threads(threads),
-                TiledRenderer::DEFAULT_TILE,
-            )?),
-            RendererKind::Object => AnyRenderer::Object(ObjectRenderer::new(threads)?),
-        })
-    }
-
-    /// Which renderer this is.
-    pub fn kind(&self) -> RendererKind {
-        match self {
-            AnyRenderer::Serial(_) => RendererKind::Serial,
-            AnyRenderer::Tiles(_) => RendererKind::Tiles,
-            AnyRenderer::Object(_) => RendererKind::Object,
-        }
-    }
-}
-
-impl Renderer for AnyRenderer {
-    fn name(&self) -> &'static str {
-        match self {
-            AnyRenderer::Serial(r) => r.name(),
-            AnyRenderer::Tiles(r) => r.name(),
-            AnyRenderer::Object(r) => r.name(),
-        }
-    }
-
-    fn threads(&self) -> usize {
-        match self {
-            AnyRenderer::Serial(r) => r.threads(),
-            AnyRenderer::Tiles(r) => r.threads(),
-            AnyRenderer::Object(r) => r.threads(),
-        }
-    }
-
-    fn render_cancellable(
-        &mut self,
-        scene: &Scene,
-        camera: &Camera,
-        tf: &TransferFunction,
-        options: &RenderOptions,
-        cancel: Cancel<'_>,
-    ) -> Result<Option<Frame>> {
-        match self {
-            AnyRenderer::Serial(r) => r.render_cancellable(scene, camera, tf, options, cancel),
-            AnyRenderer::Tiles(r) => r.render_cancellable(scene, camera, tf, options, cancel),
-            AnyRenderer::Object(r) => r.render_cancellable(scene, camera, tf, options, cancel),
-        }
-    }
-}
 
 /// How much work a frame may cost: full quality, or a draft for
 /// interaction (a coarser step, fewer pixels).

@@ -21,6 +21,7 @@
 //! times the frame and assembles the film; a renderer supplies only its
 //! scheduling. The README compares the renderers' speed.
 
+mod any;
 mod driver;
 mod film;
 mod frame;
@@ -31,15 +32,70 @@ mod plan;
 mod serial;
 mod tiled;
 
+pub use any::{AnyRenderer, RendererKind};
 pub use frame::{Frame, FrameStats};
-pub use front::{
-    AnyRenderer, FrameRequest, FrontEvent, FrontOptions, Quality, RendererFront, RendererKind,
-    WakeFn,
-};
-pub use object::{ObjectConfig, ObjectRenderer, TaskOrder};
+pub use front::{FrameRequest, FrontEvent, FrontOptions, Quality, RendererFront, WakeFn};
+pub use object::{ObjectConfig, TaskOrder};
 pub use plan::{PlanCache, RenderOptions};
-pub use serial::SerialRenderer;
-pub use tiled::TiledRenderer;
+
+/// One thread, tile by tile: the reference the parallel renderers match.
+pub type SerialRenderer = FrameRenderer<serial::InOrder>;
+/// Screen tiles on a thread pool, each ray whole on one thread.
+pub type TiledRenderer = FrameRenderer<tiled::TilePool>;
+/// Bricks integrated front to back into tiles by render threads fed from
+/// one task queue (see [`object`]).
+pub type ObjectRenderer = FrameRenderer<object::Bricks>;
+
+/// A renderer made of a schedule (which rays are integrated on which
+/// threads) and the frame driver every renderer shares (preparation,
+/// dispatch to the volume and integrator types, timing, the film).
+#[derive(Debug, Default)]
+pub struct FrameRenderer<S> {
+    schedule: S,
+    cache: PlanCache,
+}
+
+impl<S> FrameRenderer<S> {
+    fn with_schedule(schedule: S) -> Self {
+        FrameRenderer {
+            schedule,
+            cache: PlanCache::default(),
+        }
+    }
+
+    fn schedule(&self) -> &S {
+        &self.schedule
+    }
+}
+
+impl<S: driver::Schedule> Renderer for FrameRenderer<S> {
+    fn name(&self) -> &'static str {
+        S::NAME
+    }
+
+    fn threads(&self) -> usize {
+        self.schedule.threads()
+    }
+
+    fn render_cancellable(
+        &mut self,
+        scene: &Scene,
+        camera: &Camera,
+        tf: &TransferFunction,
+        options: &RenderOptions,
+        cancel: Cancel<'_>,
+    ) -> Result<Option<Frame>> {
+        driver::render_frame(
+            &mut self.schedule,
+            &mut self.cache,
+            scene,
+            camera,
+            tf,
+            options,
+            cancel,
+        )
+    }
+}
 
 use std::sync::atomic::{AtomicBool, AtomicU64, Ordering};
 
@@ -85,6 +141,27 @@ pub trait Renderer: Send {
                 renderer: self.name(),
             }),
         }
+    }
+}
+
+impl<R: Renderer + ?Sized> Renderer for Box<R> {
+    fn name(&self) -> &'static str {
+        (**self).name()
+    }
+
+    fn threads(&self) -> usize {
+        (**self).threads()
+    }
+
+    fn render_cancellable(
+        &mut self,
+        scene: &Scene,
+        camera: &Camera,
+        tf: &TransferFunction,
+        options: &RenderOptions,
+        cancel: Cancel<'_>,
+    ) -> Result<Option<Frame>> {
+        (**self).render_cancellable(scene, camera, tf, options, cancel)
     }
 }
 

@@ -70,7 +70,7 @@ impl PlanCache {
 }
 
 /// Validated per-frame inputs common to every renderer.
-pub(crate) struct FramePlan {
+pub struct FramePlan {
     pub camera: CameraFrame,
     pub rect: PixelRect,
     pub step: f32,

@@ -1,21 +1,10 @@
 //! The serial reference renderer: every pixel on the calling thread.
 
-use super::driver::{FrameJob, Schedule, render_frame, render_tile};
+use super::SerialRenderer;
+use super::driver::{FrameJob, Schedule, render_tile};
 use super::film::Film;
-use super::plan::{PlanCache, RenderOptions};
-use super::{Cancel, Frame, Renderer};
-use crate::camera::Camera;
-use crate::error::Result;
 use crate::integrator::Integrator;
-use crate::scene::Scene;
-use crate::transfer::TransferFunction;
 use crate::volume::Volume;
-
-/// One thread, tile by tile: the reference the parallel renderers match.
-#[derive(Debug, Default)]
-pub struct SerialRenderer {
-    cache: PlanCache,
-}
 
 impl SerialRenderer {
     /// A new renderer.
@@ -30,9 +19,17 @@ impl SerialRenderer {
 /// is the same in any order.
 const SERIAL_TILE: u32 = 16;
 
-struct InOrder;
+/// The serial renderer's schedule: tiles in order on the calling thread.
+#[derive(Debug, Default)]
+pub struct InOrder;
 
 impl Schedule for InOrder {
+    const NAME: &'static str = "serial";
+
+    fn threads(&self) -> usize {
+        1
+    }
+
     fn run<V: Volume, I: Integrator>(
         &mut self,
         job: &FrameJob<'_, V>,
@@ -48,34 +45,5 @@ impl Schedule for InOrder {
             samples += n;
         }
         Some(samples)
-    }
-}
-
-impl Renderer for SerialRenderer {
-    fn name(&self) -> &'static str {
-        "serial"
-    }
-
-    fn threads(&self) -> usize {
-        1
-    }
-
-    fn render_cancellable(
-        &mut self,
-        scene: &Scene,
-        camera: &Camera,
-        tf: &TransferFunction,
-        options: &RenderOptions,
-        cancel: Cancel<'_>,
-    ) -> Result<Option<Frame>> {
-        render_frame(
-            &mut InOrder,
-            &mut self.cache,
-            scene,
-            camera,
-            tf,
-            options,
-            cancel,
-        )
     }
 }

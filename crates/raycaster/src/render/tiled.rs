@@ -3,35 +3,27 @@
 
 use rayon::prelude::*;
 
-use super::driver::{FrameJob, Schedule, render_frame, render_tile};
+use super::TiledRenderer;
+use super::driver::{FrameJob, Schedule, render_tile};
 use super::film::Film;
-use super::plan::{PlanCache, RenderOptions};
-use super::{Cancel, Frame, Renderer};
-use crate::camera::{Camera, PixelRect};
+use crate::camera::PixelRect;
 use crate::error::{Error, Result};
 use crate::integrator::Integrator;
-use crate::scene::Scene;
-use crate::transfer::TransferFunction;
 use crate::volume::Volume;
 
-/// Tiles on a rayon pool; work stealing balances tiles of unequal cost.
-pub struct TiledRenderer {
-    pool: Pool,
-    cache: PlanCache,
-}
-
-/// The scheduling half of the renderer: its threads and tile size.
-struct Pool {
+/// The tiled renderer's schedule: tiles on a rayon pool; work stealing
+/// balances tiles of unequal cost.
+pub struct TilePool {
     pool: rayon::ThreadPool,
     threads: usize,
     tile: u32,
 }
 
-impl std::fmt::Debug for TiledRenderer {
+impl std::fmt::Debug for TilePool {
     fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
-        f.debug_struct("TiledRenderer")
-            .field("threads", &self.pool.threads)
-            .field("tile", &self.pool.tile)
+        f.debug_struct("TilePool")
+            .field("threads", &self.threads)
+            .field("tile", &self.tile)
             .finish()
     }
 }
@@ -54,18 +46,21 @@ impl TiledRenderer {
                 role: "render",
                 source: std::io::Error::other(e),
             })?;
-        Ok(TiledRenderer {
-            pool: Pool {
-                pool,
-                threads,
-                tile: tile.max(1),
-            },
-            cache: PlanCache::default(),
-        })
+        Ok(TiledRenderer::with_schedule(TilePool {
+            pool,
+            threads,
+            tile: tile.max(1),
+        }))
     }
 }
 
-impl Schedule for Pool {
+impl Schedule for TilePool {
+    const NAME: &'static str = "tiles";
+
+    fn threads(&self) -> usize {
+        self.threads
+    }
+
     fn run<V: Volume, I: Integrator>(
         &mut self,
         job: &FrameJob<'_, V>,
@@ -88,34 +83,5 @@ impl Schedule for Pool {
             samples += n;
         }
         Some(samples)
-    }
-}
-
-impl Renderer for TiledRenderer {
-    fn name(&self) -> &'static str {
-        "tiles"
-    }
-
-    fn threads(&self) -> usize {
-        self.pool.threads
-    }
-
-    fn render_cancellable(
-        &mut self,
-        scene: &Scene,
-        camera: &Camera,
-        tf: &TransferFunction,
-        options: &RenderOptions,
-        cancel: Cancel<'_>,
-    ) -> Result<Option<Frame>> {
-        render_frame(
-            &mut self.pool,
-            &mut self.cache,
-            scene,
-            camera,
-            tf,
-            options,
-            cancel,
-        )
     }
 }

@@ -12,11 +12,13 @@ use crate::storage::StorageKind;
 /// A typed view of a volume's samples: the grid, the sample array and its
 /// addressing, with the constants of the hot loop copied in. Cheap to make;
 /// [`AnyVolume::visit`](super::AnyVolume::visit) makes one per frame.
-#[derive(Debug, Clone, Copy)]
+#[derive(Debug, Clone)]
 pub struct GridVolume<'a, S: Sample, A: Addressing> {
     grid: &'a Grid,
     data: &'a [S],
-    addr: &'a A,
+    /// A copy: the hot loop reads strides from the view itself rather than
+    /// through one more pointer.
+    addr: A,
     kind: StorageKind,
     stride: [usize; 3],
     max_coord: Vec3,
@@ -36,7 +38,7 @@ impl<'a, S: Sample, A: Addressing> GridVolume<'a, S, A> {
         GridVolume {
             grid,
             data,
-            addr,
+            addr: addr.clone(),
             kind,
             stride: addr.neighbour_strides(),
             max_coord: grid.max_coord(),
@@ -50,8 +52,8 @@ impl<'a, S: Sample, A: Addressing> GridVolume<'a, S, A> {
     }
 
     /// The addressing.
-    pub fn addressing(&self) -> &'a A {
-        self.addr
+    pub fn addressing(&self) -> &A {
+        &self.addr
     }
 }
 

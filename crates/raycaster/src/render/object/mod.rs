@@ -109,16 +109,15 @@ use glam::UVec3;
 
 use self::bricks::BrickSet;
 use self::work::FrameWork;
-use super::driver::{FrameJob, Schedule, render_frame};
+use super::ObjectRenderer;
+use super::driver::{FrameJob, Schedule};
 use super::film::Film;
-use super::plan::{PlanCache, RenderOptions};
-use super::{Cancel, Frame, Renderer};
+use super::plan::RenderOptions;
 use crate::accel::SkipGrid;
-use crate::camera::Camera;
 use crate::error::{Error, Result};
 use crate::integrator::{Integrator, IntegratorVisitor, RenderMode};
 use crate::scene::Scene;
-use crate::transfer::{TfLut, TransferFunction};
+use crate::transfer::TfLut;
 use crate::volume::{Layout, Volume};
 
 /// Options of the object-parallel renderer.
@@ -223,19 +222,10 @@ pub(crate) fn resolve_threads(n: usize) -> usize {
     }
 }
 
-/// Bricks integrated front to back into tiles by render threads fed from
-/// one task queue (see the [module docs](crate::render::object)). Threads
-/// are started for each frame and joined before `render` returns.
+/// The object renderer's schedule: its options and the visible bricks of
+/// the last frame.
 #[derive(Debug)]
-pub struct ObjectRenderer {
-    bricks: Bricks,
-    cache: PlanCache,
-}
-
-/// The scheduling half of the renderer: its options and the visible bricks
-/// of the last frame.
-#[derive(Debug)]
-struct Bricks {
+pub struct Bricks {
     config: ObjectConfig,
     last: Option<(BrickKey, Arc<BrickSet>)>,
 }
@@ -268,15 +258,12 @@ impl ObjectRenderer {
         if config.tile == 0 {
             config.tile = ObjectConfig::DEFAULT_TILE;
         }
-        Ok(ObjectRenderer {
-            bricks: Bricks { config, last: None },
-            cache: PlanCache::default(),
-        })
+        Ok(ObjectRenderer::with_schedule(Bricks { config, last: None }))
     }
 
     /// The options in use.
     pub fn config(&self) -> &ObjectConfig {
-        &self.bricks.config
+        &self.schedule().config
     }
 }
 
@@ -315,6 +302,12 @@ impl Bricks {
 }
 
 impl Schedule for Bricks {
+    const NAME: &'static str = "object";
+
+    fn threads(&self) -> usize {
+        self.config.render_threads + self.config.composite_threads
+    }
+
     fn run<V: Volume, I: Integrator>(
         &mut self,
         job: &FrameJob<'_, V>,
@@ -355,34 +348,5 @@ impl BrickKey {
             && self.side == other.side
             && self.cull == other.cull
             && (!self.cull || Arc::ptr_eq(&self.prepared, &other.prepared))
-    }
-}
-
-impl Renderer for ObjectRenderer {
-    fn name(&self) -> &'static str {
-        "object"
-    }
-
-    fn threads(&self) -> usize {
-        self.bricks.config.render_threads + self.bricks.config.composite_threads
-    }
-
-    fn render_cancellable(
-        &mut self,
-        scene: &Scene,
-        camera: &Camera,
-        tf: &TransferFunction,
-        options: &RenderOptions,
-        cancel: Cancel<'_>,
-    ) -> Result<Option<Frame>> {
-        render_frame(
-            &mut self.bricks,
-            &mut self.cache,
-            scene,
-            camera,
-            tf,
-            options,
-            cancel,
-        )
     }
 }
