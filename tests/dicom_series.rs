@@ -1,4 +1,4 @@
-//! The DICOM series reader (SPEC §7) on a real 40-slice MRI series: header
+//! The DICOM series reader on a real 40-slice MRI series: header
 //! values, slice order by position along the normal (not by file name),
 //! mixed directories, malformed files and a render of the head.
 //!

@@ -35,8 +35,8 @@ fn fuzz_seeds(dir: &TempDir) -> Vec<(&'static str, Vec<u8>, Option<RawOptions>, 
             SYN_DIMS,
             SYN_SPACING,
             SampleType::I16,
-            &le_bytes(&i16v),
             Encoding::Raw,
+            samples::bytes(&le_bytes(&i16v)),
         )
         .unwrap()
     });
@@ -46,8 +46,8 @@ fn fuzz_seeds(dir: &TempDir) -> Vec<(&'static str, Vec<u8>, Option<RawOptions>, 
             SYN_DIMS,
             SYN_SPACING,
             SampleType::U8,
-            &le_bytes(&u8v),
             Encoding::Gzip,
+            samples::bytes(&le_bytes(&u8v)),
         )
         .unwrap()
     });
@@ -57,8 +57,8 @@ fn fuzz_seeds(dir: &TempDir) -> Vec<(&'static str, Vec<u8>, Option<RawOptions>, 
             SYN_DIMS,
             SYN_SPACING,
             SampleType::I16,
-            &le_bytes(&i16v),
             None,
+            samples::bytes(&le_bytes(&i16v)),
         )
         .unwrap()
     });
@@ -79,8 +79,8 @@ fn fuzz_seeds(dir: &TempDir) -> Vec<(&'static str, Vec<u8>, Option<RawOptions>, 
             SYN_DIMS,
             SYN_SPACING,
             SampleType::F32,
-            &le_bytes(&f32v),
             Some(r),
+            samples::bytes(&le_bytes(&f32v)),
         )
         .unwrap()
     });

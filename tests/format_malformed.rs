@@ -490,7 +490,7 @@ fn malformed_cases(dir: &TempDir) -> Vec<Case> {
             ),
             &["1000000000000000 bytes", "more than"],
         ),
-        // ---- .vol (SPEC §1)
+        // ---- .vol
         case(
             "vol: empty file",
             "bad.vol",

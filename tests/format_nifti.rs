@@ -1,4 +1,4 @@
-//! NIfTI-1 variants (SPEC §7): rescaling to data units, big-endian files,
+//! NIfTI-1 variants: rescaling to data units, big-endian files,
 //! and 4-D files, of which the first volume opens.
 
 mod common;
@@ -60,7 +60,15 @@ fn nifti_rescale_gives_data_units() {
         for ext in ["nii", "nii.gz"] {
             let what = format!("{ty} × {slope} + {inter} .{ext}");
             let p = dir.join(&format!("{ty}-{slope}-{inter}.{ext}"));
-            nifti::write(&p, SYN_DIMS, SYN_SPACING, ty, &le, Some(rescale)).unwrap();
+            nifti::write(
+                &p,
+                SYN_DIMS,
+                SYN_SPACING,
+                ty,
+                Some(rescale),
+                samples::bytes(&le),
+            )
+            .unwrap();
             let opened = open(&p);
             assert_eq!(opened.info.stored_type, ty, "{what}: stored type");
             assert_eq!(opened.info.rescale, Some(rescale), "{what}: info.rescale");
@@ -145,8 +153,8 @@ fn big_endian_nifti_opens_with_the_same_values() {
         SYN_DIMS,
         SYN_SPACING,
         SampleType::I16,
-        &le_bytes(&stored),
         Some(rescale),
+        samples::bytes(&le_bytes(&stored)),
     )
     .unwrap();
     let mut h = NiiHeader::new(SYN_DIMS, SYN_SPACING, SampleType::I16, Endian::Big);
@@ -209,4 +217,38 @@ fn nifti_4d_opens_the_first_volume() {
         !opened.info.notes.is_empty(),
         "a note on the replaced spacing"
     );
+}
+
+/// A two-file NIfTI (`ni1` magic): the `.hdr` names its `.img`, which is
+/// read raw or, as `.img.gz`, decoded, whatever the header file is; the
+/// file size counts both files.
+#[test]
+fn nifti_header_and_image_pairs_open() {
+    let dir = TempDir::new("nifti-pair");
+    let want = synthetic(SampleType::I16, SYN_DIMS, SYN_SPACING, 70);
+    let data = le_bytes(&want);
+    let mut h = NiiHeader::new(SYN_DIMS, SYN_SPACING, SampleType::I16, Endian::Little);
+    h.magic = *b"ni1\0";
+    h.vox_offset = 0.0;
+    let header = h.bytes();
+    for (stem, image, bytes, encoding) in [
+        ("plain", "plain.img", data.clone(), "raw"),
+        ("packed", "packed.img.gz", gzip(&dir, &data), "gzip"),
+    ] {
+        let hdr = dir.file(&format!("{stem}.hdr"), &header);
+        dir.file(image, &bytes);
+        assert_eq!(fmt::detect(&hdr).unwrap(), FileFormat::Nifti);
+        let opened = open(&hdr);
+        check_opened(stem, &opened, &want, FileFormat::Nifti, SampleType::I16);
+        assert_eq!(opened.info.encoding, encoding, "{stem}");
+        assert_eq!(
+            opened.info.file_bytes,
+            (header.len() + bytes.len()) as u64,
+            "{stem}"
+        );
+    }
+    // Without its image file, the error names the missing file.
+    let lone = dir.file("lone.hdr", &header);
+    let e = fmt::open_file(&lone, &Default::default()).unwrap_err();
+    assert!(e.to_string().contains("lone.img is missing"), "{e}");
 }

@@ -1,4 +1,4 @@
-//! NRRD variants (SPEC §7): detached headers, line and byte skips, spacings
+//! NRRD variants: detached headers, line and byte skips, spacings
 //! and space directions, CRLF line endings, big-endian data and 4-D files.
 
 mod common;

@@ -1,4 +1,4 @@
-//! The real volumes in /work/shared/data (SPEC §6, §7): the FLAIR NRRD and
+//! The real volumes in /work/shared/data: the FLAIR NRRD and
 //! the MNI NIfTI read right (probe voxels, slice sums, every voxel against an
 //! independent decoder) and render a plausible head from the default view;
 //! wrong readings are caught; written as `.vol` and raw files they render
@@ -37,7 +37,7 @@ fn gunzip_cli(dir: &TempDir, gz: &[u8]) -> Option<Vec<u8>> {
 
 const IMAGE: u32 = 96;
 
-/// The default view of SPEC §6 (framing camera from +z, 45°) at 96×96.
+/// The command line's default view (framing camera from +z, 45°) at 96×96.
 fn framing_camera(scene: &Scene) -> Camera {
     Camera::framing(&scene.grid().bounds(), IMAGE, IMAGE, 45.0)
 }
@@ -196,7 +196,7 @@ fn central_slice_sums(v: &AnyVolume) -> [f64; 3] {
 }
 
 // Values below were computed with Python's gzip/struct from the files, x
-// fastest (SPEC §7): a reader with a transposed axis order or the wrong
+// fastest, as both formats store them: a reader with a transposed axis order or the wrong
 // byte order fails them.
 const FLAIR_PROBES: &[([u32; 3], f32)] = &[
     ([62, 80, 70], 170.0),

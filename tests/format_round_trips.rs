@@ -1,4 +1,4 @@
-//! Round trips through the project's writers (SPEC §1, §7): synthetic
+//! Round trips through the project's writers: synthetic
 //! volumes of every sample type through NRRD (raw and gzip), NIfTI (`.nii`,
 //! `.nii.gz`) and raw files in both axis orders and byte orders, and u8
 //! volumes through `.vol` (both layouts) and the UC Davis `.vol`, give the
@@ -40,7 +40,8 @@ fn synthetic_volumes_of_every_type_round_trip_through_every_writer() {
         ] {
             let what = format!("{ty} NRRD {name}");
             let p = dir.join(&format!("{ty}-{name}.{ext}"));
-            nrrd::write(&p, SYN_DIMS, SYN_SPACING, ty, &le, enc).expect("nrrd write");
+            nrrd::write(&p, SYN_DIMS, SYN_SPACING, ty, enc, samples::bytes(&le))
+                .expect("nrrd write");
             let opened = open(&p);
             check_opened(&what, &opened, &want, FileFormat::Nrrd, ty);
             assert_eq!(opened.info.encoding, name, "{what}");
@@ -51,7 +52,8 @@ fn synthetic_volumes_of_every_type_round_trip_through_every_writer() {
         for (name, encoding) in [("nii", "raw"), ("nii.gz", "gzip")] {
             let what = format!("{ty} .{name}");
             let p = dir.join(&format!("{ty}.{name}"));
-            nifti::write(&p, SYN_DIMS, SYN_SPACING, ty, &le, None).expect("nifti write");
+            nifti::write(&p, SYN_DIMS, SYN_SPACING, ty, None, samples::bytes(&le))
+                .expect("nifti write");
             let opened = open(&p);
             check_opened(&what, &opened, &want, FileFormat::Nifti, ty);
             assert_eq!(opened.info.encoding, encoding, "{what}");
@@ -108,7 +110,7 @@ fn u8_volumes_round_trip_through_vol_and_uc_davis() {
     let dir = TempDir::new("vol-davis");
     let want = synthetic(SampleType::U8, SYN_DIMS, SYN_SPACING, 5);
 
-    // SPEC .vol, both layouts.
+    // This project's .vol, both layouts.
     for (name, layout) in [
         ("linear.vol", VolLayout::Linear),
         ("bricked.vol", VolLayout::Bricked { side: 3 }),
@@ -157,7 +159,7 @@ fn u8_volumes_round_trip_through_vol_and_uc_davis() {
         opened.info.notes
     );
 
-    // The same bytes: a SPEC .vol without extension is still a SPEC .vol.
+    // The same bytes: a .vol without extension is still this project's .vol.
     let spec = std::fs::read(dir.join("linear.vol")).unwrap();
     let p = dir.file("spec-no-extension", &spec);
     assert_eq!(fmt::detect(&p).unwrap(), FileFormat::Vol);

@@ -1,7 +1,9 @@
-//! The `.vol` format (SPEC §1): linear, bricked and file volumes render
+//! The `.vol` format (a 26-byte little-endian header, then u8 samples z
+//! fastest or in overlapping bricks): linear, bricked and file volumes render
 //! identically, the interop files of another implementation agree, files are
-//! byte for byte SPEC §1 and read back identical, every bad header is an
-//! error naming the file, and garbage never panics the reader.
+//! byte for byte the layout the test encodes independently and read back
+//! identical, every bad header is an error naming the file, and garbage never
+//! panics the reader.
 
 mod common;
 
@@ -129,7 +131,7 @@ fn interop_files_read_the_same_and_render_identically() {
     );
     // The data is the shapes benchmark: some voxels in the shapes TF's range.
     assert!(a.iter().any(|v| (85..115).contains(v)));
-    // The linear file's bytes are the voxels in SPEC §1 order.
+    // The linear file's bytes are the voxels after the header, z fastest.
     let raw = std::fs::read(&lin_path).unwrap();
     assert_eq!(&raw[26..], &a[..]);
     let (lin, bri) = (Scene::new(lin), Scene::new(bri));
@@ -157,7 +159,9 @@ fn interop_files_read_the_same_and_render_identically() {
 
 // ---------------------------------------------------------------- .vol bytes
 
-/// SPEC §1's bricked encoding, written independently of the library.
+/// The bricked encoding (bricks of side B overlapping by one sample, in
+/// x-slowest order; inside a brick z fastest, 0 past the volume's edge),
+/// written independently of the library.
 fn encode_bricked(dims: [u32; 3], b: u32, voxel: impl Fn(u32, u32, u32) -> u8) -> Vec<u8> {
     let n = |d: u32| if d == 1 { 1 } else { (d - 1).div_ceil(b - 1) };
     let (nx, ny, nz) = (n(dims[0]), n(dims[1]), n(dims[2]));
@@ -181,7 +185,7 @@ fn encode_bricked(dims: [u32; 3], b: u32, voxel: impl Fn(u32, u32, u32) -> u8) -
 }
 
 /// Write then read back, for odd sizes and several brick sides: the file is
-/// byte for byte SPEC §1 (checked against an independent encoder) and reads
+/// byte for byte the expected layout (checked against an independent encoder) and reads
 /// back voxel-identical.
 #[test]
 fn vol_round_trip() {
@@ -220,7 +224,7 @@ fn vol_round_trip() {
             assert_eq!(bytes.len(), want.len(), "{dims:?} {layout:?}: file length");
             assert!(
                 bytes == want,
-                "{dims:?} {layout:?}: file bytes differ from SPEC §1"
+                "{dims:?} {layout:?}: file bytes differ from the independent encoder"
             );
             for mode in [LoadMode::Map, LoadMode::Ram] {
                 let back = raycaster::format::open(file.path(), mode).unwrap();
@@ -232,7 +236,7 @@ fn vol_round_trip() {
     }
 }
 
-/// Every bad header case of SPEC §1 is an error naming the file, never a panic.
+/// Every bad header case of the format is an error naming the file, never a panic.
 #[test]
 fn bad_vol_files_are_errors_that_name_the_file() {
     let ok = |dims: [u32; 3]| vol_header(dims, [1.0; 3], 1, 0);

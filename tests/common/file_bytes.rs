@@ -1,15 +1,16 @@
 //! File bytes made by hand, independently of the library's readers: `.vol`
-//! headers (SPEC §1), NIfTI-1 headers, NRRD headers, and gzip streams (made
+//! headers, NIfTI-1 headers, NRRD headers, and gzip streams (made
 //! with the project's NRRD writer: the suite has no gzip dependency).
 
 use glam::{UVec3, Vec3};
 use raycaster::format::Endian;
 use raycaster::format::nrrd::{self, Encoding};
+use raycaster::format::samples;
 use raycaster::prelude::*;
 
 use super::TempDir;
 
-/// A 26-byte `.vol` header (SPEC §1): dimensions and spacing, little-endian,
+/// A 26-byte `.vol` header: dimensions and spacing, little-endian,
 /// then the layout byte and the extra byte (the brick side).
 pub fn vol_header(dims: [u32; 3], spacing: [f32; 3], layout: u8, extra: u8) -> Vec<u8> {
     let mut b = Vec::new();
@@ -148,7 +149,15 @@ pub fn with_field<'a>(
 pub fn gzip(dir: &TempDir, bytes: &[u8]) -> Vec<u8> {
     let p = dir.join(".gzip-helper.nrrd");
     let dims = UVec3::new(bytes.len().max(1) as u32, 1, 1);
-    nrrd::write(&p, dims, Vec3::ONE, SampleType::U8, bytes, Encoding::Gzip).expect("gzip");
+    nrrd::write(
+        &p,
+        dims,
+        Vec3::ONE,
+        SampleType::U8,
+        Encoding::Gzip,
+        samples::bytes(bytes),
+    )
+    .expect("gzip");
     let all = std::fs::read(&p).expect("read gzip helper");
     let _ = std::fs::remove_file(&p);
     all[header_end(&all).expect("NRRD header end")..].to_vec()

@@ -168,6 +168,16 @@ pub enum FormatError {
     /// The format is not recognised.
     #[error("unrecognised volume format ({0})")]
     Unrecognised(String),
+    /// The file needs a codec or reader that this build of the library left
+    /// out (a cargo feature of `raycaster` that is off): unlike
+    /// [`FormatError::Unsupported`], a build with the feature reads it.
+    #[error("{support} support is not compiled in (enable the `{feature}` feature of raycaster)")]
+    NotCompiledIn {
+        /// What is missing, as the user knows it (`gzip`, `DICOM`).
+        support: &'static str,
+        /// The cargo feature that adds it.
+        feature: &'static str,
+    },
 }
 
 /// Shorthand for results of this crate.

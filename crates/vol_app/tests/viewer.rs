@@ -249,11 +249,11 @@ fn opens_a_16_bit_nifti_with_a_rescale_and_shows_what_the_file_stores() {
         dims,
         Vec3::new(1.0, 1.0, 2.0),
         SampleType::U16,
-        &bytes,
         Some(raycaster::format::Rescale {
             slope: 2.0,
             intercept: -100.0,
         }),
+        raycaster::format::samples::bytes(&bytes),
     )
     .unwrap();
     h.input_mut()

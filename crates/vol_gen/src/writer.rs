@@ -18,7 +18,8 @@ use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::mpsc;
 use std::time::Duration;
 
-use raycaster::format::vol::{VolHeader, write_atomically};
+use raycaster::format::atomic::write_atomically;
+use raycaster::format::vol::VolHeader;
 
 use crate::error::{Error, Result};
 use crate::generators::Field;

@@ -1,9 +1,9 @@
 //! The UC Davis `.vol` format (the volume data sets of O. Kreylos's ECS 277
-//! course, which the seed thesis renders): a 28-byte big-endian header —
-//! dimensions X, Y, Z (`u32`), a border width (`u32`), cell size sx, sy, sz
-//! (`f32`) — followed by X·Y·Z `u8` samples, z fastest. It shares the
-//! extension with our `.vol` (SPEC §1) and is told apart by which header's
-//! implied length matches the file.
+//! course, classic test volumes for ray casting): a 28-byte big-endian
+//! header — dimensions X, Y, Z (`u32`), a border width (`u32`), cell size
+//! sx, sy, sz (`f32`) — followed by X·Y·Z `u8` samples, z fastest. It shares
+//! the extension with this project's `.vol` (see [`super::vol`]) and is told
+//! apart by which header's implied length matches the file.
 
 use std::path::Path;
 
@@ -13,7 +13,6 @@ use super::samples::{self, Endian, SampleLayout};
 use super::{FileFormat, Opened, VolumeInfo};
 use crate::error::{Error, FormatError, Result};
 use crate::sample::SampleType;
-use crate::storage::LoadMode;
 use crate::volume::AxisOrder;
 
 /// Header length in bytes.
@@ -90,35 +89,62 @@ pub fn header_plausible(head: &[u8]) -> bool {
     })
 }
 
-/// Opens a UC Davis `.vol` file.
-pub fn open(path: &Path, mode: LoadMode) -> Result<Opened> {
-    let head = super::read_head(path, HEADER_LEN)?;
-    let len = super::file_len(path)?;
-    let header = DavisHeader::parse(&head).ok_or_else(|| {
-        Error::format(
-            path,
-            FormatError::TooShortForHeader {
-                expected: HEADER_LEN as u64,
-                found: len,
-            },
-        )
-    })?;
-    let layout = SampleLayout {
-        dims: header.dims,
-        spacing: header.spacing,
-        sample: SampleType::U8,
-        endian: Endian::Big,
-        order: AxisOrder::ZFast,
-    };
-    let volume = samples::from_file(path, HEADER_LEN as u64, &layout, None, mode, true)?;
-    let mut info = VolumeInfo::new(FileFormat::DavisVol, &layout, "raw", len);
-    if header.border > 0 {
-        info.notes.push(format!(
-            "border of {} voxels (kept as samples)",
-            header.border
-        ));
+/// The reader of UC Davis `.vol` files: it claims the file firmly when its
+/// header's implied length matches, and by name when the bytes are no valid
+/// `.vol` header but a plausible UC Davis one (a truncated file, whose
+/// length this reader then reports).
+#[derive(Debug, Clone, Copy)]
+pub struct DavisReader;
+
+impl super::Reader for DavisReader {
+    fn format(&self) -> FileFormat {
+        FileFormat::DavisVol
     }
-    Ok(Opened { volume, info })
+
+    fn sniff(&self, probe: &super::Probe) -> Option<super::Claim> {
+        if probe.is_dir || !matches!(probe.extension(), "vol" | "") {
+            return None;
+        }
+        if header_matches(probe.head, probe.len) {
+            Some(super::Claim::Content)
+        } else if super::vol::VolHeader::parse(probe.head).is_err() && header_plausible(probe.head)
+        {
+            Some(super::Claim::Name)
+        } else {
+            None
+        }
+    }
+
+    fn open(&self, path: &Path, options: &super::OpenOptions) -> Result<Opened> {
+        let head = super::read_head(path, HEADER_LEN)?;
+        let len = super::file_len(path)?;
+        let header = DavisHeader::parse(&head).ok_or_else(|| {
+            Error::format(
+                path,
+                FormatError::TooShortForHeader {
+                    expected: HEADER_LEN as u64,
+                    found: len,
+                },
+            )
+        })?;
+        let layout = SampleLayout {
+            dims: header.dims,
+            spacing: header.spacing,
+            sample: SampleType::U8,
+            endian: Endian::Big,
+            order: AxisOrder::ZFast,
+        };
+        let volume =
+            samples::from_file(path, HEADER_LEN as u64, &layout, None, options.mode, true)?;
+        let mut info = VolumeInfo::new(FileFormat::DavisVol, &layout, "raw", len);
+        if header.border > 0 {
+            info.notes.push(format!(
+                "border of {} voxels (kept as samples)",
+                header.border
+            ));
+        }
+        Ok(Opened { volume, info })
+    }
 }
 
 #[cfg(test)]

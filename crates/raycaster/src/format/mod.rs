@@ -1,24 +1,31 @@
 //! Volume file formats: detecting them, parsing headers and bringing samples
 //! into memory.
 //!
-//! [`open_file`] detects the format from the file's content and extension
-//! and returns the volume as an [`AnyVolume`] (its sample type known only at
+//! [`open_file`] detects the format from the file's content and name and
+//! returns the volume as an [`AnyVolume`] (its sample type known only at
 //! run time) plus a [`VolumeInfo`] describing what the file stores. Each
-//! format has its own module; all but `.vol` describe their samples with a
-//! [`SampleLayout`] and leave the decoding to [`samples`], so byte order,
-//! axis order, memory mapping and rescaling are handled once.
+//! format has its own module with a [`Reader`]; detection asks every reader
+//! in [`READERS`] how strongly it claims the file (see [`reader`]). All
+//! formats but `.vol` describe their samples with a [`SampleLayout`] and
+//! leave the decoding to [`samples`], so byte order, axis order, memory
+//! mapping and rescaling are handled once.
 //!
 //! | module | files |
 //! |---|---|
-//! | [`vol`] | the 26-byte-header `.vol` of SPEC §1, linear or bricked |
+//! | [`vol`] | this project's `.vol`: a 26-byte header, 8-bit samples, linear or bricked |
 //! | [`davis`] | the UC Davis `.vol` (28-byte big-endian header) |
 //! | [`nrrd`] | `.nrrd`, `.nhdr` + detached data; raw or gzip |
-//! | [`nifti`] | NIfTI-1 `.nii`, `.nii.gz` |
+//! | [`nifti`] | NIfTI-1 `.nii`, `.nii.gz`, `.hdr` + `.img` |
 //! | [`dicom`] | a directory (or one file) of a DICOM series |
-//! | [`raw`] | headerless samples described on the command line |
+//! | [`raw`] | headerless samples described by the caller |
 //!
 //! [`save::save`] writes any volume as `.vol`, NRRD, NIfTI-1 or raw, the
-//! format chosen by the file name.
+//! format chosen by the file name; every writer goes through
+//! [`atomic::write_atomically`].
+//!
+//! DICOM series and gzip streams need the `dicom` and `gzip` cargo features
+//! (on by default). Without them such files are still detected, and opening
+//! one is an error that names the file and the missing feature.
 //!
 //! ```no_run
 //! use raycaster::format::{open_file, OpenOptions};
@@ -28,11 +35,14 @@
 //! # Ok::<(), raycaster::Error>(())
 //! ```
 
+pub mod atomic;
 pub mod davis;
 pub mod dicom;
+mod gzip;
 pub mod nifti;
 pub mod nrrd;
 pub mod raw;
+pub mod reader;
 pub mod samples;
 pub mod save;
 pub mod vol;
@@ -42,9 +52,10 @@ use std::path::Path;
 use glam::{UVec3, Vec3};
 
 pub use raw::RawOptions;
+pub use reader::{Claim, Probe, READERS, Reader, detect, reader_for};
 pub use samples::{Endian, Rescale, SampleLayout};
 
-use crate::error::{Error, FormatError, Result};
+use crate::error::{Error, Result};
 use crate::sample::SampleType;
 use crate::storage::LoadMode;
 use crate::volume::AnyVolume;
@@ -52,7 +63,7 @@ use crate::volume::AnyVolume;
 /// The formats this build can read.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
 pub enum FileFormat {
-    /// The 26-byte-header `.vol` format of SPEC §1.
+    /// This project's `.vol` format: a 26-byte header, 8-bit samples.
     Vol,
     /// The UC Davis `.vol` format (28-byte big-endian header).
     DavisVol,
@@ -62,7 +73,7 @@ pub enum FileFormat {
     Nifti,
     /// A DICOM series.
     Dicom,
-    /// Headerless samples described by [`RawOptions`].
+    /// Headerless samples described by [`RawOptions`] (never detected).
     Raw,
 }
 
@@ -184,7 +195,8 @@ pub struct VolumeInfo {
     /// `value = stored·slope + intercept`, when not the identity.
     pub rescale: Option<Rescale>,
     /// The orientation as stored (NRRD space directions, NIfTI q/sform, DICOM
-    /// orientation), reported but not applied (SPEC §7).
+    /// orientation), reported but not applied: the volume's axes are the
+    /// file's.
     pub orientation: Option<String>,
     /// Anything else the user should know (e.g. "4-D file: volume 1 of 3").
     pub notes: Vec<String>,
@@ -224,89 +236,16 @@ pub struct Opened {
     pub info: VolumeInfo,
 }
 
-/// Guesses the format of `path` from its extension and first bytes.
-pub fn detect(path: &Path) -> Result<FileFormat> {
-    let meta = std::fs::metadata(path).map_err(|e| Error::io(path, e))?;
-    if meta.is_dir() {
-        return Ok(FileFormat::Dicom);
-    }
-    let name = path
-        .file_name()
-        .map(|n| n.to_string_lossy().to_ascii_lowercase())
-        .unwrap_or_default();
-    let head = read_head(path, 352)?;
-    if head.starts_with(b"NRRD000") {
-        return Ok(FileFormat::Nrrd);
-    }
-    if nifti::looks_like(&head) || name.ends_with(".nii.gz") || name.ends_with(".hdr") {
-        return Ok(FileFormat::Nifti);
-    }
-    if dicom::looks_like(&head) {
-        return Ok(FileFormat::Dicom);
-    }
-    let ext = name.rsplit_once('.').map(|(_, e)| e).unwrap_or("");
-    match ext {
-        "nrrd" | "nhdr" => Ok(FileFormat::Nrrd),
-        "nii" => Ok(FileFormat::Nifti),
-        "dcm" | "ima" => Ok(FileFormat::Dicom),
-        "vol" | "" => {
-            // Two formats share the extension: the header whose implied
-            // length matches the file decides.
-            if vol::header_matches(&head, meta.len()) {
-                Ok(FileFormat::Vol)
-            } else if davis::header_matches(&head, meta.len())
-                || (vol::VolHeader::parse(&head).is_err() && davis::header_plausible(&head))
-            {
-                // A UC Davis file, or one whose length is wrong: its own
-                // reader reports the mismatch.
-                Ok(FileFormat::DavisVol)
-            } else {
-                // Let the .vol reader say what is wrong with the header.
-                Ok(FileFormat::Vol)
-            }
-        }
-        "raw" | "bin" | "dat" | "img" => Err(Error::format(
-            path,
-            FormatError::Unrecognised(format!(
-                "a .{ext} file has no header: describe it with --raw-dims and --raw-type"
-            )),
-        )),
-        other => Err(Error::format(
-            path,
-            FormatError::Unrecognised(format!(
-                "extension .{other}; supported: .vol, .nrrd, .nhdr, .nii, .nii.gz, .dcm or a DICOM directory, raw with --raw-dims/--raw-type"
-            )),
-        )),
-    }
-}
-
 /// Opens a volume file of any supported format, as described in the module
 /// documentation.
 pub fn open_file(path: &Path, options: &OpenOptions) -> Result<Opened> {
-    let opened = open_detected(path, options);
+    let opened = reader_for(path, options).and_then(|reader| reader.open(path, options));
     if let Some(p) = &options.progress {
         // Done (or failed): the reader may have stopped short of its input's
         // end (the first volume of a 4-D file), so say it here.
         p.report(1.0);
     }
     opened
-}
-
-fn open_detected(path: &Path, options: &OpenOptions) -> Result<Opened> {
-    if let Some(raw) = &options.raw {
-        return raw::open(path, raw, options.mode);
-    }
-    match detect(path)? {
-        FileFormat::Vol => vol::open_with_info(path, options.mode),
-        FileFormat::DavisVol => davis::open(path, options.mode),
-        FileFormat::Nrrd => nrrd::open_with(path, options.mode, options.progress.as_ref()),
-        FileFormat::Nifti => nifti::open_with(path, options.mode, options.progress.as_ref()),
-        FileFormat::Dicom => dicom::open_with(path, options.progress.as_ref()),
-        FileFormat::Raw => Err(Error::InvalidArgument(format!(
-            "{}: raw files need --raw-dims and --raw-type",
-            path.display()
-        ))),
-    }
 }
 
 /// Opens a volume file of any supported format (see [`open_file`]) and
@@ -338,10 +277,4 @@ fn file_len(path: &Path) -> Result<u64> {
     Ok(std::fs::metadata(path)
         .map_err(|e| Error::io(path, e))?
         .len())
-}
-
-/// The most bytes `compressed` bytes of gzip can inflate to (deflate's
-/// best ratio is about 1032:1), with room for small streams.
-fn max_inflated(compressed: u64) -> u64 {
-    compressed.saturating_mul(1032).saturating_add(1 << 16)
 }

@@ -4,16 +4,19 @@
 //! Supported datatypes: `UINT8` (2), `INT16` (4), `FLOAT32` (16), `INT8`
 //! (256), `UINT16` (512). Spacing is `pixdim[1..=3]` (absolute values;
 //! zero or non-finite ones become 1 with a note). A non-identity
-//! `scl_slope`/`scl_inter` is applied (SPEC §7). Files with more than three
-//! dimensions open their first volume and say so. The q/sform is reported,
-//! not applied. Uncompressed single files in native byte order without
-//! scaling are memory-mapped; `.nii.gz` is decoded once.
+//! `scl_slope`/`scl_inter` is applied, so the volume holds data units
+//! (`stored·slope + intercept`). Files with more than three dimensions open
+//! their first volume and say so. The q/sform is reported, not applied.
+//! Uncompressed files in native byte order without scaling are
+//! memory-mapped; gzip-compressed ones (`.nii.gz`, `.img.gz`) are decoded
+//! once, which needs the `gzip` feature.
 
 use std::io::Read;
 use std::path::{Path, PathBuf};
 
 use glam::{UVec3, Vec3};
 
+use super::gzip::{self, Gzip};
 use super::samples::{self, Endian, Rescale, SampleLayout};
 use super::{FileFormat, Opened, VolumeInfo};
 use crate::error::{Error, FormatError, Result};
@@ -112,30 +115,35 @@ impl NiftiHeader {
     }
 
     fn sample_type(&self) -> std::result::Result<SampleType, String> {
-        Ok(match self.datatype {
-            2 => SampleType::U8,
-            4 => SampleType::I16,
-            16 => SampleType::F32,
-            256 => SampleType::I8,
-            512 => SampleType::U16,
-            other => {
-                let name = match other {
-                    1 => "BINARY",
-                    8 => "INT32",
-                    32 => "COMPLEX64",
-                    64 => "FLOAT64",
-                    128 => "RGB24",
-                    768 => "UINT32",
-                    1024 => "INT64",
-                    1280 => "UINT64",
-                    2304 => "RGBA32",
-                    _ => "unknown",
-                };
-                return Err(format!(
-                    "datatype {other} ({name}); supported: UINT8, INT8, UINT16, INT16, FLOAT32"
-                ));
-            }
-        })
+        const READ: [SampleType; 5] = [
+            SampleType::U8,
+            SampleType::I8,
+            SampleType::U16,
+            SampleType::I16,
+            SampleType::F32,
+        ];
+        if let Some(t) = READ
+            .into_iter()
+            .find(|&t| datatype_of(t).0 == self.datatype)
+        {
+            return Ok(t);
+        }
+        let name = match self.datatype {
+            1 => "BINARY",
+            8 => "INT32",
+            32 => "COMPLEX64",
+            64 => "FLOAT64",
+            128 => "RGB24",
+            768 => "UINT32",
+            1024 => "INT64",
+            1280 => "UINT64",
+            2304 => "RGBA32",
+            _ => "unknown",
+        };
+        Err(format!(
+            "datatype {} ({name}); supported: UINT8, INT8, UINT16, INT16, FLOAT32",
+            self.datatype
+        ))
     }
 
     /// The rescale, when `scl_slope` is set (non-zero, finite) and not the
@@ -169,6 +177,17 @@ impl NiftiHeader {
     }
 }
 
+/// The NIfTI-1 datatype code of `t` and its bits per voxel.
+fn datatype_of(t: SampleType) -> (i16, i16) {
+    match t {
+        SampleType::U8 => (2, 8),
+        SampleType::I16 => (4, 16),
+        SampleType::F32 => (16, 32),
+        SampleType::I8 => (256, 8),
+        SampleType::U16 => (512, 16),
+    }
+}
+
 fn invalid(path: &Path, msg: impl Into<String>) -> Error {
     Error::format(path, FormatError::Invalid(msg.into()))
 }
@@ -178,25 +197,48 @@ fn is_gzip_name(path: &Path) -> bool {
     path.to_string_lossy().to_ascii_lowercase().ends_with(".gz")
 }
 
-/// Opens a NIfTI-1 file.
-pub fn open(path: &Path, mode: LoadMode) -> Result<Opened> {
-    open_with(path, mode, None)
+/// Whether `path` is gzip-compressed, by its name or its first bytes.
+fn is_compressed(path: &Path) -> Result<bool> {
+    Ok(is_gzip_name(path) || gzip::is_gzip(&super::read_head(path, 2)?))
 }
 
-/// As [`open`], reporting the progress of a gzip decode.
-pub fn open_with(
-    path: &Path,
-    mode: LoadMode,
-    progress: Option<&super::Progress>,
-) -> Result<Opened> {
+/// The reader of NIfTI-1 files. The magic number claims a file; so do the
+/// names `.nii.gz` (its header is compressed, so there are no bytes to look
+/// at before decoding) and `.hdr` (an Analyze-style header may lack the
+/// magic), as firmly as content; a plain `.nii` name claims it weakly.
+#[derive(Debug, Clone, Copy)]
+pub struct NiftiReader;
+
+impl super::Reader for NiftiReader {
+    fn format(&self) -> FileFormat {
+        FileFormat::Nifti
+    }
+
+    fn sniff(&self, probe: &super::Probe) -> Option<super::Claim> {
+        if probe.is_dir {
+            None
+        } else if looks_like(probe.head)
+            || probe.name.ends_with(".nii.gz")
+            || probe.name.ends_with(".hdr")
+        {
+            Some(super::Claim::Content)
+        } else {
+            (probe.extension() == "nii").then_some(super::Claim::Name)
+        }
+    }
+
+    fn open(&self, path: &Path, options: &super::OpenOptions) -> Result<Opened> {
+        open(path, options.mode, options.progress.as_ref())
+    }
+}
+
+fn open(path: &Path, mode: LoadMode, progress: Option<&super::Progress>) -> Result<Opened> {
     let file_bytes = super::file_len(path)?;
-    let gz = is_gzip_name(path) || super::read_head(path, 2)? == [0x1f, 0x8b];
+    let gz = is_compressed(path)?;
     // The header: from the file, or from the start of the gzip stream.
     let file = std::fs::File::open(path).map_err(|e| Error::io(path, e))?;
     let mut stream: Box<dyn Read> = if gz {
-        Box::new(flate2::read::MultiGzDecoder::new(std::io::BufReader::new(
-            super::ProgressReader::new(file, file_bytes, progress),
-        )))
+        Gzip::get(path)?.decoder(super::ProgressReader::new(file, file_bytes, progress))
     } else {
         Box::new(file)
     };
@@ -256,53 +298,88 @@ pub fn open_with(
     layout.validate(path)?;
     let rescale = h.rescale();
 
-    let (data_path, offset) = if h.single_file {
+    let (volume, data_bytes, data_gz) = if h.single_file {
         if !(h.vox_offset.is_finite() && h.vox_offset >= HEADER_LEN as f32) {
             return Err(invalid(
                 path,
                 format!("vox_offset {} (must be at least 348)", h.vox_offset),
             ));
         }
-        (path.to_path_buf(), h.vox_offset as u64)
-    } else {
-        (image_file_for(path)?, h.vox_offset.max(0.0) as u64)
-    };
-    let volume = if gz {
-        // Skip to vox_offset (the single file's stream is past the header
-        // already), then decode exactly the first volume.
-        let (mut s, skip): (Box<dyn Read>, u64) = if h.single_file {
-            (stream, offset.saturating_sub(HEADER_LEN as u64))
+        let offset = h.vox_offset as u64;
+        let volume = if gz {
+            // The stream is past the header already.
+            let data = GzipSamples {
+                offset,
+                skip: offset.saturating_sub(HEADER_LEN as u64),
+                compressed: file_bytes,
+            };
+            data.decode(path, stream, &layout, rescale)?
         } else {
-            let f = std::fs::File::open(&data_path).map_err(|e| Error::io(&data_path, e))?;
-            let gz = flate2::read::MultiGzDecoder::new(std::io::BufReader::new(f));
-            (Box::new(gz), offset)
+            samples::from_file(path, offset, &layout, rescale, mode, false)?
         };
-        std::io::copy(&mut s.by_ref().take(skip), &mut std::io::sink())
-            .map_err(|e| invalid(path, format!("gzip data is corrupt or truncated ({e})")))?;
-        let stream = samples::Stream {
-            offset,
-            max_bytes: Some(super::max_inflated(file_bytes)),
-            compression: Some("gzip"),
-        };
-        samples::from_reader(path, s, &layout, rescale, stream)?
+        (volume, 0, gz)
     } else {
-        samples::from_file(&data_path, offset, &layout, rescale, mode, false)?
+        // The image file is compressed or not whatever the header file is.
+        let data_path = image_file_for(path)?;
+        let offset = h.vox_offset.max(0.0) as u64;
+        let data_bytes = super::file_len(&data_path)?;
+        let data_gz = is_compressed(&data_path)?;
+        let volume = if data_gz {
+            let gzip = Gzip::get(&data_path)?;
+            let f = std::fs::File::open(&data_path).map_err(|e| Error::io(&data_path, e))?;
+            let input = gzip.decoder(super::ProgressReader::new(f, data_bytes, progress));
+            let data = GzipSamples {
+                offset,
+                skip: offset,
+                compressed: data_bytes,
+            };
+            data.decode(&data_path, input, &layout, rescale)?
+        } else {
+            samples::from_file(&data_path, offset, &layout, rescale, mode, false)?
+        };
+        (volume, data_bytes, data_gz)
     };
     let mut info = VolumeInfo::new(
         FileFormat::Nifti,
         &layout,
-        if gz { "gzip" } else { "raw" },
-        file_bytes
-            + if h.single_file {
-                0
-            } else {
-                super::file_len(&data_path)?
-            },
+        if data_gz { "gzip" } else { "raw" },
+        file_bytes + data_bytes,
     );
     info.rescale = rescale;
     info.orientation = h.orientation();
     info.notes = notes;
     Ok(Opened { volume, info })
+}
+
+/// Where the samples start in a decompressed stream.
+struct GzipSamples {
+    /// Their offset in the decompressed file (named in length errors).
+    offset: u64,
+    /// Bytes of the stream to skip before them.
+    skip: u64,
+    /// Bytes of the compressed file, which bound what it can inflate to.
+    compressed: u64,
+}
+
+impl GzipSamples {
+    /// Skips to the samples of `stream` (decompressed data of `path`) and
+    /// decodes exactly the first volume.
+    fn decode(
+        &self,
+        path: &Path,
+        mut stream: Box<dyn Read + '_>,
+        layout: &SampleLayout,
+        rescale: Option<Rescale>,
+    ) -> Result<crate::volume::AnyVolume> {
+        std::io::copy(&mut stream.by_ref().take(self.skip), &mut std::io::sink())
+            .map_err(|e| invalid(path, format!("gzip data is corrupt or truncated ({e})")))?;
+        let stream_info = samples::Stream {
+            offset: self.offset,
+            max_bytes: Some(gzip::max_inflated(self.compressed)),
+            compression: Some("gzip"),
+        };
+        samples::from_reader(path, stream, layout, rescale, stream_info)
+    }
 }
 
 /// The `.img` file of a `.hdr` (same stem, also `.img.gz`).
@@ -321,27 +398,12 @@ fn image_file_for(path: &Path) -> Result<PathBuf> {
         .ok_or_else(|| invalid(path, format!("the image file {stem}.img is missing")))
 }
 
-/// Writes `le_bytes` (x fastest, little-endian samples of `sample`) as a
-/// single-file NIfTI-1 (`.nii`, or gzip-compressed when `path` ends in
-/// `.gz`) with the given rescale: the project's own writer, for converters
-/// and round-trip tests.
+/// Writes a single-file NIfTI-1 (`.nii`, or gzip-compressed when `path`
+/// ends in `.gz`) with the given rescale, its samples (x fastest,
+/// little-endian, of type `sample`) written by `samples` into the file or
+/// the gzip stream ([`samples::bytes`] for samples already in memory): the
+/// project's own writer, for converters and round-trip tests.
 pub fn write(
-    path: &Path,
-    dims: UVec3,
-    spacing: Vec3,
-    sample: SampleType,
-    le_bytes: &[u8],
-    rescale: Option<Rescale>,
-) -> Result<()> {
-    write_with(path, dims, spacing, sample, rescale, |w| {
-        w.write_all(le_bytes)
-    })
-}
-
-/// As [`write`], with the samples (x fastest, little-endian) written by
-/// `samples` into the file or the gzip stream: a volume can be streamed
-/// without a copy of its bytes in memory.
-pub fn write_with(
     path: &Path,
     dims: UVec3,
     spacing: Vec3,
@@ -349,7 +411,15 @@ pub fn write_with(
     rescale: Option<Rescale>,
     samples: impl FnOnce(&mut dyn std::io::Write) -> std::io::Result<()>,
 ) -> Result<()> {
-    use std::io::Write;
+    if dims.max_element() > i16::MAX as u32 {
+        return Err(Error::format(
+            path,
+            FormatError::Unsupported(format!(
+                "dimensions {}x{}x{}: NIfTI-1 dimensions are at most 32767",
+                dims.x, dims.y, dims.z
+            )),
+        ));
+    }
     let mut h = vec![0u8; HEADER_LEN + 4];
     let put_i16 = |h: &mut [u8], o: usize, v: i16| h[o..o + 2].copy_from_slice(&v.to_le_bytes());
     let put_f32 = |h: &mut [u8], o: usize, v: f32| h[o..o + 4].copy_from_slice(&v.to_le_bytes());
@@ -360,13 +430,7 @@ pub fn write_with(
     {
         put_i16(&mut h, 40 + 2 * i, d);
     }
-    let (code, bits) = match sample {
-        SampleType::U8 => (2, 8),
-        SampleType::I16 => (4, 16),
-        SampleType::F32 => (16, 32),
-        SampleType::I8 => (256, 8),
-        SampleType::U16 => (512, 16),
-    };
+    let (code, bits) = datatype_of(sample);
     put_i16(&mut h, 70, code);
     put_i16(&mut h, 72, bits);
     for (i, p) in [1.0, spacing.x, spacing.y, spacing.z, 1.0, 1.0, 1.0, 1.0]
@@ -383,16 +447,16 @@ pub fn write_with(
     put_f32(&mut h, 112, r.slope as f32);
     put_f32(&mut h, 116, r.intercept as f32);
     h[344..348].copy_from_slice(b"n+1\0");
-    let gz = is_gzip_name(path);
-    super::vol::write_atomically(path, |w| {
-        if gz {
-            let mut e = flate2::write::GzEncoder::new(w, flate2::Compression::fast());
-            e.write_all(&h)?;
-            samples(&mut e)?;
-            e.finish().map(|_| ())
-        } else {
+    // A .nii.gz is the gzip stream of the whole .nii, header included.
+    let gzip = is_gzip_name(path).then(|| Gzip::get(path)).transpose()?;
+    super::atomic::write_atomically(path, |w| {
+        let whole = |w: &mut dyn std::io::Write| {
             w.write_all(&h)?;
             samples(w)
+        };
+        match gzip {
+            Some(gzip) => gzip.encode(w, whole),
+            None => whole(w),
         }
     })
 }

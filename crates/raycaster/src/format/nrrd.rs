@@ -7,8 +7,9 @@
 //! char`, `short`, `ushort`, `float` in all their spellings; `endian`;
 //! encodings `raw` and `gzip`; `byte skip`, `line skip`; spacing from
 //! `space directions` (the length of each vector) or `spacings`. The first
-//! axis is the fastest (SPEC §7). Orientation and `space origin` are
-//! reported, not applied. Raw data is memory-mapped; gzip is decoded once.
+//! axis is the fastest, as NRRD defines. Orientation and `space origin` are
+//! reported, not applied. Raw data is memory-mapped; gzip is decoded once
+//! (which needs the `gzip` feature).
 //! Not supported (named in the error): ascii/hex/bzip2 encodings, `int`,
 //! `double` and 64-bit types, multi-file `data file: LIST`.
 
@@ -17,6 +18,7 @@ use std::path::{Path, PathBuf};
 
 use glam::{UVec3, Vec3};
 
+use super::gzip::{self, Gzip};
 use super::samples::{self, Endian, SampleLayout};
 use super::{FileFormat, Opened, VolumeInfo};
 use crate::error::{Error, FormatError, Result};
@@ -35,6 +37,16 @@ pub enum Encoding {
     Raw,
     /// A gzip stream.
     Gzip,
+}
+
+impl Encoding {
+    /// The name in the header's `encoding` field.
+    pub fn name(self) -> &'static str {
+        match self {
+            Encoding::Raw => "raw",
+            Encoding::Gzip => "gzip",
+        }
+    }
 }
 
 /// The fields of an NRRD header that matter here, validated.
@@ -325,17 +337,32 @@ fn skip_lines(path: &Path, from: u64, n: u64) -> Result<u64> {
     Ok(pos)
 }
 
-/// Opens an NRRD file (`.nrrd` or `.nhdr`).
-pub fn open(path: &Path, mode: LoadMode) -> Result<Opened> {
-    open_with(path, mode, None)
+/// The reader of NRRD files: the `NRRD000x` magic line claims a file, the
+/// names `.nrrd` and `.nhdr` claim it weakly.
+#[derive(Debug, Clone, Copy)]
+pub struct NrrdReader;
+
+impl super::Reader for NrrdReader {
+    fn format(&self) -> FileFormat {
+        FileFormat::Nrrd
+    }
+
+    fn sniff(&self, probe: &super::Probe) -> Option<super::Claim> {
+        if probe.is_dir {
+            None
+        } else if probe.head.starts_with(b"NRRD000") {
+            Some(super::Claim::Content)
+        } else {
+            matches!(probe.extension(), "nrrd" | "nhdr").then_some(super::Claim::Name)
+        }
+    }
+
+    fn open(&self, path: &Path, options: &super::OpenOptions) -> Result<Opened> {
+        open(path, options.mode, options.progress.as_ref())
+    }
 }
 
-/// As [`open`], reporting the progress of a gzip decode.
-pub fn open_with(
-    path: &Path,
-    mode: LoadMode,
-    progress: Option<&super::Progress>,
-) -> Result<Opened> {
+fn open(path: &Path, mode: LoadMode, progress: Option<&super::Progress>) -> Result<Opened> {
     let h = NrrdHeader::read(path)?;
     let layout = h.layout;
     layout.validate(path)?;
@@ -361,29 +388,26 @@ pub fn open_with(
         }
         Encoding::Gzip => {
             use std::io::{Seek, SeekFrom};
-            let mut f = std::fs::File::open(data).map_err(|e| Error::io(data, e))?;
-            f.seek(SeekFrom::Start(h.data_offset.unwrap_or(0)))
-                .map_err(|e| Error::io(data, e))?;
+            let gzip = Gzip::get(path)?;
             let start = h.data_offset.unwrap_or(0);
-            let counted = super::ProgressReader::new(f, data_len.saturating_sub(start), progress);
-            let gz = flate2::read::MultiGzDecoder::new(std::io::BufReader::new(counted));
+            let mut f = std::fs::File::open(data).map_err(|e| Error::io(data, e))?;
+            f.seek(SeekFrom::Start(start))
+                .map_err(|e| Error::io(data, e))?;
+            let compressed = data_len.saturating_sub(start);
+            let counted = super::ProgressReader::new(f, compressed, progress);
             let stream = samples::Stream {
                 offset: 0,
-                max_bytes: Some(super::max_inflated(data_len.saturating_sub(start))),
+                max_bytes: Some(gzip::max_inflated(compressed)),
                 compression: Some("gzip"),
             };
-            samples::from_reader(data, gz, &layout, None, stream)?
+            samples::from_reader(data, gzip.decoder(counted), &layout, None, stream)?
         }
     };
     let mut file_bytes = super::file_len(path)?;
     if data != path {
         file_bytes += data_len;
     }
-    let encoding = match h.encoding {
-        Encoding::Raw => "raw",
-        Encoding::Gzip => "gzip",
-    };
-    let mut info = VolumeInfo::new(FileFormat::Nrrd, &layout, encoding, file_bytes);
+    let mut info = VolumeInfo::new(FileFormat::Nrrd, &layout, h.encoding.name(), file_bytes);
     info.orientation = h.orientation;
     if data != path {
         info.notes.push(format!("data in {}", data.display()));
@@ -397,26 +421,11 @@ pub fn open_with(
     Ok(Opened { volume, info })
 }
 
-/// Writes `samples` (x fastest, little-endian) as an NRRD file with the given
-/// encoding: the project's own writer, used by converters and round-trip
-/// tests.
+/// Writes an NRRD file with the given encoding, its samples (x fastest,
+/// little-endian, of type `sample`) written by `samples` into the file or
+/// the gzip stream ([`samples::bytes`] for samples already in memory): the
+/// project's own writer, for converters and round-trip tests.
 pub fn write(
-    path: &Path,
-    dims: UVec3,
-    spacing: Vec3,
-    sample: SampleType,
-    le_bytes: &[u8],
-    encoding: Encoding,
-) -> Result<()> {
-    write_with(path, dims, spacing, sample, encoding, |w| {
-        w.write_all(le_bytes)
-    })
-}
-
-/// As [`write`], with the samples (x fastest, little-endian) written by
-/// `samples` into the file or the gzip stream: a volume can be streamed
-/// without a copy of its bytes in memory.
-pub fn write_with(
     path: &Path,
     dims: UVec3,
     spacing: Vec3,
@@ -440,20 +449,18 @@ pub fn write_with(
         spacing.x,
         spacing.y,
         spacing.z,
-        match encoding {
-            Encoding::Raw => "raw",
-            Encoding::Gzip => "gzip",
-        }
+        encoding.name()
     );
-    super::vol::write_atomically(path, |w| {
+    // The header stays text; only the samples are compressed.
+    let gzip = match encoding {
+        Encoding::Raw => None,
+        Encoding::Gzip => Some(Gzip::get(path)?),
+    };
+    super::atomic::write_atomically(path, |w| {
         w.write_all(header.as_bytes())?;
-        match encoding {
-            Encoding::Raw => samples(w),
-            Encoding::Gzip => {
-                let mut gz = flate2::write::GzEncoder::new(w, flate2::Compression::fast());
-                samples(&mut gz)?;
-                gz.finish().map(|_| ())
-            }
+        match gzip {
+            Some(gzip) => gzip.encode(w, samples),
+            None => samples(w),
         }
     })
 }

@@ -1,6 +1,9 @@
-//! Headerless ("raw") sample files, described by the user (SPEC §6):
-//! dimensions, sample type with byte order, spacing, a byte offset to skip
-//! and the axis order (x fastest by default, as most published raw data).
+//! Headerless ("raw") sample files, described by the caller (on the command
+//! line: `--raw-dims`, `--raw-type`, ...): dimensions, sample type with byte
+//! order, spacing, a byte offset to skip and the axis order (x fastest by
+//! default, as most published raw data). Nothing in such a file can be
+//! detected, so [`RawReader`] is not in the detection table: it reads the
+//! file when [`OpenOptions::raw`](super::OpenOptions::raw) is given.
 
 use std::path::Path;
 
@@ -8,9 +11,8 @@ use glam::{UVec3, Vec3};
 
 use super::samples::{self, Endian, SampleLayout};
 use super::{FileFormat, Opened, VolumeInfo};
-use crate::error::{Error, Result};
+use crate::error::{Error, FormatError, Result};
 use crate::sample::SampleType;
-use crate::storage::LoadMode;
 use crate::volume::AxisOrder;
 
 /// The description of a raw file.
@@ -73,36 +75,59 @@ impl RawOptions {
     }
 }
 
-/// Opens `path` as raw samples described by `raw`. The file must hold exactly
+/// The reader of headerless files described by
+/// [`OpenOptions::raw`](super::OpenOptions::raw). The file must hold exactly
 /// `offset` + the samples' bytes: a size mismatch usually means wrong
 /// dimensions or type, and the error says what was expected.
-pub fn open(path: &Path, raw: &RawOptions, mode: LoadMode) -> Result<Opened> {
-    if std::fs::metadata(path)
-        .map_err(|e| Error::io(path, e))?
-        .is_dir()
-    {
-        return Err(Error::InvalidArgument(format!(
-            "{}: is a directory, not a raw file",
-            path.display()
-        )));
+#[derive(Debug, Clone, Copy)]
+pub struct RawReader;
+
+impl super::Reader for RawReader {
+    fn format(&self) -> FileFormat {
+        FileFormat::Raw
     }
-    let layout = SampleLayout {
-        dims: raw.dims,
-        spacing: raw.spacing,
-        sample: raw.sample,
-        endian: raw.endian,
-        order: raw.order,
-    };
-    let volume = samples::from_file(path, raw.offset, &layout, None, mode, true)?;
-    let mut info = VolumeInfo::new(FileFormat::Raw, &layout, "raw", super::file_len(path)?);
-    info.notes.push(match raw.order {
-        AxisOrder::XFast => "x fastest".to_string(),
-        AxisOrder::ZFast => "z fastest".to_string(),
-    });
-    if raw.offset > 0 {
-        info.notes.push(format!("{} bytes skipped", raw.offset));
+
+    /// Never claims a file: there is no header to recognise.
+    fn sniff(&self, _probe: &super::Probe) -> Option<super::Claim> {
+        None
     }
-    Ok(Opened { volume, info })
+
+    fn open(&self, path: &Path, options: &super::OpenOptions) -> Result<Opened> {
+        let Some(raw) = &options.raw else {
+            return Err(Error::format(
+                path,
+                FormatError::Unrecognised(
+                    "a headerless file needs a description (--raw-dims and --raw-type)".into(),
+                ),
+            ));
+        };
+        if std::fs::metadata(path)
+            .map_err(|e| Error::io(path, e))?
+            .is_dir()
+        {
+            return Err(Error::format(
+                path,
+                FormatError::Invalid("is a directory, not a raw file".into()),
+            ));
+        }
+        let layout = SampleLayout {
+            dims: raw.dims,
+            spacing: raw.spacing,
+            sample: raw.sample,
+            endian: raw.endian,
+            order: raw.order,
+        };
+        let volume = samples::from_file(path, raw.offset, &layout, None, options.mode, true)?;
+        let mut info = VolumeInfo::new(FileFormat::Raw, &layout, "raw", super::file_len(path)?);
+        info.notes.push(match raw.order {
+            AxisOrder::XFast => "x fastest".to_string(),
+            AxisOrder::ZFast => "z fastest".to_string(),
+        });
+        if raw.offset > 0 {
+            info.notes.push(format!("{} bytes skipped", raw.offset));
+        }
+        Ok(Opened { volume, info })
+    }
 }
 
 /// Writes the samples of `volume` as a headerless file in `order` and
@@ -114,5 +139,5 @@ pub fn write(
     order: AxisOrder,
     endian: Endian,
 ) -> Result<()> {
-    super::vol::write_atomically(path, |w| samples::write_samples(w, volume, order, endian))
+    super::atomic::write_atomically(path, |w| samples::write_samples(w, volume, order, endian))
 }

@@ -5,7 +5,7 @@
 //! native-endian data without rescaling is memory-mapped (or read into RAM,
 //! per [`LoadMode`]); big-endian data is byte-swapped once; data with a
 //! rescale slope/intercept is converted once to the type that holds
-//! `stored·slope + intercept` exactly (SPEC §7).
+//! `stored·slope + intercept` exactly, so volumes hold data units.
 
 use std::path::Path;
 
@@ -396,6 +396,13 @@ pub(crate) fn parse_triple<T: std::str::FromStr>(text: &str) -> Option<[T; 3]> {
         .map(|s| s.parse().ok())
         .collect::<Option<_>>()?;
     parts.try_into().ok()
+}
+
+/// A sample writer for [`nrrd::write`](super::nrrd::write) and
+/// [`nifti::write`](super::nifti::write) that puts `le_bytes` (samples
+/// already encoded, x fastest, little-endian) as they are.
+pub fn bytes(le_bytes: &[u8]) -> impl FnOnce(&mut dyn std::io::Write) -> std::io::Result<()> + '_ {
+    move |w| w.write_all(le_bytes)
 }
 
 /// The samples of `volume` as bytes in `order` and `endian` order: what a

@@ -1,7 +1,7 @@
 //! Writing a volume of any sample type to a file, the format chosen by the
-//! file name: `.vol` (SPEC §1, 8-bit), `.nrrd`, `.nii`, `.nii.gz`, or raw
-//! (`.raw`, `.bin`: x fastest, little-endian). Each file appears under its
-//! name only when complete.
+//! file name: `.vol` (8-bit), `.nrrd`, `.nii`, `.nii.gz`, or raw (`.raw`,
+//! `.bin`: x fastest, little-endian). Each file appears under its name only
+//! when complete.
 
 use std::path::Path;
 
@@ -10,7 +10,7 @@ use glam::UVec3;
 use super::nrrd::Encoding;
 use super::samples::{Endian, write_samples};
 use super::vol::VolLayout;
-use crate::error::{Error, Result};
+use crate::error::{Error, FormatError, Result};
 use crate::sample::{Sample, SampleType};
 use crate::volume::{AnyVolume, AxisOrder, Volume, VolumeVisitor};
 
@@ -61,10 +61,12 @@ pub fn output_format(path: &Path, options: &SaveOptions) -> Result<OutputFormat>
         "gz" if name.ends_with(".nii.gz") => OutputFormat::Nifti { gzip: true },
         "raw" | "bin" => OutputFormat::Raw,
         _ => {
-            return Err(Error::InvalidArgument(format!(
-                "{}: cannot tell the output format from the name (use .vol, .nrrd, .nii, .nii.gz, .raw or .bin)",
-                path.display()
-            )));
+            return Err(Error::format(
+                path,
+                FormatError::Unrecognised(
+                    "cannot tell the output format from the name; use .vol, .nrrd, .nii, .nii.gz, .raw or .bin".into(),
+                ),
+            ));
         }
     })
 }
@@ -90,19 +92,13 @@ pub fn save(path: &Path, volume: &AnyVolume, options: &SaveOptions) -> Result<Ou
         }
         OutputFormat::Nrrd(encoding) => {
             let t = volume.sample_type();
-            super::nrrd::write_with(path, grid.dims, grid.spacing, t, encoding, |w| {
+            super::nrrd::write(path, grid.dims, grid.spacing, t, encoding, |w| {
                 write_samples(w, volume, AxisOrder::XFast, Endian::Little)
             })?;
         }
         OutputFormat::Nifti { .. } => {
-            if grid.dims.max_element() > i16::MAX as u32 {
-                return Err(Error::InvalidArgument(format!(
-                    "{}: NIfTI-1 dimensions are at most 32767",
-                    path.display()
-                )));
-            }
             let t = volume.sample_type();
-            super::nifti::write_with(path, grid.dims, grid.spacing, t, None, |w| {
+            super::nifti::write(path, grid.dims, grid.spacing, t, None, |w| {
                 write_samples(w, volume, AxisOrder::XFast, Endian::Little)
             })?;
         }
@@ -131,9 +127,7 @@ fn value_range(volume: &AnyVolume) -> (f32, f32) {
 fn to_u8(volume: &AnyVolume, window: (f32, f32)) -> Result<AnyVolume> {
     let (lo, hi) = window;
     if !(lo.is_finite() && hi.is_finite()) {
-        return Err(Error::InvalidArgument(format!(
-            "window {lo}..{hi} is not finite"
-        )));
+        return Err(Error::option("window", format!("{lo}..{hi} is not finite")));
     }
     let scale = if hi > lo { 255.0 / (hi - lo) } else { 0.0 };
     struct Window(f32, f32);

@@ -1,5 +1,7 @@
-//! The `.vol` format (SPEC §1): a 26-byte little-endian header followed by
-//! `u8` samples in the linear or the bricked layout.
+//! This project's `.vol` format: a 26-byte little-endian header (dimensions
+//! X, Y, Z as `u32`; spacing X, Y, Z as `f32`; a layout byte; a brick side
+//! byte) followed by `u8` samples, linear (z fastest) or in overlapping
+//! bricks. The file holds exactly the bytes the header implies.
 
 use std::io::Write;
 use std::path::Path;
@@ -222,27 +224,51 @@ pub fn header_matches(head: &[u8], file_len: u64) -> bool {
     VolHeader::parse(head).is_ok_and(|h| h.file_len() == Ok(file_len))
 }
 
-/// Opens a `.vol` file (as [`open`]) with a description of what it stores.
-pub fn open_with_info(path: &Path, mode: LoadMode) -> Result<super::Opened> {
-    let (volume, header) = open_read_header(path, mode)?;
-    let layout = super::SampleLayout {
-        dims: header.dims,
-        spacing: header.spacing,
-        sample: crate::sample::SampleType::U8,
-        endian: super::Endian::Little,
-        order: crate::volume::AxisOrder::ZFast,
-    };
-    let encoding = match header.layout {
-        VolLayout::Linear => "raw, z fastest".to_string(),
-        VolLayout::Bricked { side } => format!("bricked (B = {side})"),
-    };
-    let info = super::VolumeInfo::new(
-        super::FileFormat::Vol,
-        &layout,
-        &encoding,
-        header.file_len().unwrap_or(0),
-    );
-    Ok(super::Opened { volume, info })
+/// The reader of `.vol` files. It claims the `.vol` extension (and names
+/// without one) firmly when the header's implied length matches the file,
+/// and otherwise only as a fallback, so that a UC Davis file with the same
+/// extension goes to its own reader while a broken `.vol` header is
+/// reported by this one.
+#[derive(Debug, Clone, Copy)]
+pub struct VolReader;
+
+impl super::Reader for VolReader {
+    fn format(&self) -> super::FileFormat {
+        super::FileFormat::Vol
+    }
+
+    fn sniff(&self, probe: &super::Probe) -> Option<super::Claim> {
+        if probe.is_dir || !matches!(probe.extension(), "vol" | "") {
+            return None;
+        }
+        Some(if header_matches(probe.head, probe.len) {
+            super::Claim::Content
+        } else {
+            super::Claim::Fallback
+        })
+    }
+
+    fn open(&self, path: &Path, options: &super::OpenOptions) -> Result<super::Opened> {
+        let (volume, header) = open_read_header(path, options.mode)?;
+        let layout = super::SampleLayout {
+            dims: header.dims,
+            spacing: header.spacing,
+            sample: SampleType::U8,
+            endian: super::Endian::Little,
+            order: AxisOrder::ZFast,
+        };
+        let encoding = match header.layout {
+            VolLayout::Linear => "raw, z fastest".to_string(),
+            VolLayout::Bricked { side } => format!("bricked (B = {side})"),
+        };
+        let info = super::VolumeInfo::new(
+            super::FileFormat::Vol,
+            &layout,
+            &encoding,
+            header.file_len().unwrap_or(0),
+        );
+        Ok(super::Opened { volume, info })
+    }
 }
 
 /// Writes `volume` to `path` in `layout`. The file is written under a
@@ -306,40 +332,10 @@ pub fn write(path: &Path, volume: &AnyVolume, layout: VolLayout) -> Result<()> {
             Ok(())
         }
     }
-    write_atomically(path, |w| {
+    super::atomic::write_atomically(path, |w| {
         w.write_all(&header.to_bytes())?;
         volume.visit(Samples { w, bricks })
     })
-}
-
-/// Runs `fill` on a buffered writer to a temporary file next to `path`, then
-/// renames it to `path`. On any error the temporary file is removed.
-pub fn write_atomically(
-    path: &Path,
-    fill: impl FnOnce(&mut std::io::BufWriter<std::fs::File>) -> std::io::Result<()>,
-) -> Result<()> {
-    let tmp = temp_path_for(path);
-    let result = (|| {
-        let f = std::fs::File::create(&tmp)?;
-        let mut w = std::io::BufWriter::with_capacity(1 << 20, f);
-        fill(&mut w)?;
-        w.flush()?;
-        w.get_ref().sync_data()?;
-        std::fs::rename(&tmp, path)
-    })();
-    result.map_err(|e| {
-        let _ = std::fs::remove_file(&tmp);
-        Error::io(path, e)
-    })
-}
-
-/// The temporary name used while writing `path`: `.NAME.partial-PID` in the same directory.
-pub fn temp_path_for(path: &Path) -> std::path::PathBuf {
-    let name = path
-        .file_name()
-        .map(|n| n.to_string_lossy().into_owned())
-        .unwrap_or_default();
-    path.with_file_name(format!(".{name}.partial-{}", std::process::id()))
 }
 
 #[cfg(test)]
