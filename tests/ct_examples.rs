@@ -10,8 +10,24 @@ use glam::{UVec3, Vec3};
 use raycaster::format::{Endian, FileFormat, OpenOptions, RawOptions, open_file};
 use raycaster::prelude::*;
 
-fn dir() -> PathBuf {
-    Path::new(env!("CARGO_MANIFEST_DIR")).join("volumes/ct")
+/// `volumes/ct/NAME`, or `None` (the test is skipped) after saying how to
+/// fetch it when it is not there.
+fn example(name: &str) -> Option<PathBuf> {
+    let path = Path::new(env!("CARGO_MANIFEST_DIR"))
+        .join("volumes/ct")
+        .join(name);
+    if path.exists() {
+        return Some(path);
+    }
+    // Written to the stderr handle, not with `eprintln!`, which the test
+    // harness captures: the note shows without `--nocapture`.
+    use std::io::Write;
+    let _ = writeln!(
+        std::io::stderr(),
+        "SKIPPED: {} is missing; run volumes/fetch_ct_examples.sh to fetch the CT examples",
+        path.display()
+    );
+    None
 }
 
 /// Fraction of pixels that are not background in a framing view with `preset`.
@@ -32,7 +48,10 @@ fn coverage(scene: &Scene, preset: &str) -> f64 {
 #[test]
 #[ignore = "needs volumes/fetch_ct_examples.sh"]
 fn chest_ct_nifti_is_in_hounsfield_units() {
-    let o = open_file(&dir().join("chest_ct.nii.gz"), &OpenOptions::default()).unwrap();
+    let Some(path) = example("chest_ct.nii.gz") else {
+        return;
+    };
+    let o = open_file(&path, &OpenOptions::default()).unwrap();
     assert_eq!(o.info.format, FileFormat::Nifti);
     assert_eq!(o.info.dims, UVec3::new(512, 512, 133));
     assert!(
@@ -53,23 +72,30 @@ fn chest_ct_nifti_is_in_hounsfield_units() {
 #[test]
 #[ignore = "needs volumes/fetch_ct_examples.sh"]
 fn head_ct_raw_int16() {
+    let Some(path) = example("head_ct_i16le.raw") else {
+        return;
+    };
     let mut raw = RawOptions::new(UVec3::new(256, 256, 108), SampleType::I16, Endian::Little);
     raw.spacing = Vec3::new(0.957, 0.957, 1.5);
     let options = OpenOptions {
         raw: Some(raw),
         ..OpenOptions::default()
     };
-    let o = open_file(&dir().join("head_ct_i16le.raw"), &options).unwrap();
+    let o = open_file(&path, &options).unwrap();
     assert_eq!(o.info.format, FileFormat::Raw);
     let scene = Scene::new(o.volume);
     assert_eq!(scene.value_range(), (-1024.0, 2986.0));
     let c = coverage(&scene, "ct-bone");
     assert!((0.1..0.7).contains(&c), "ct-bone coverage {c}");
 }
+
 #[test]
 #[ignore = "needs volumes/fetch_ct_examples.sh"]
 fn catphan_dicom_series_applies_the_rescale_intercept() {
-    let o = open_file(&dir().join("catphan"), &OpenOptions::default()).unwrap();
+    let Some(path) = example("catphan") else {
+        return;
+    };
+    let o = open_file(&path, &OpenOptions::default()).unwrap();
     assert_eq!(o.info.format, FileFormat::Dicom);
     assert_eq!(o.info.dims, UVec3::new(512, 512, 64));
     assert_eq!(o.info.stored_type, SampleType::U16);

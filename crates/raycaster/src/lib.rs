@@ -20,6 +20,8 @@
 //! | [`integrator`] | what happens along one ray, per mode |
 //! | [`render`] | which rays are cast on which threads |
 //! | [`scene`] | a volume plus its acceleration data |
+//! | [`units`] | numbers and byte counts as people read them |
+//! | `cli` | the programs' shared command-line behaviour (feature `clap`) |
 //!
 //! # Example
 //!
@@ -61,6 +63,8 @@
 
 pub mod accel;
 pub mod camera;
+#[cfg(feature = "clap")]
+pub mod cli;
 pub mod error;
 pub mod format;
 pub mod geometry;
@@ -70,6 +74,7 @@ pub mod sample;
 pub mod scene;
 pub mod storage;
 pub mod transfer;
+pub mod units;
 pub mod volume;
 
 pub use error::{Error, FormatError, Result};

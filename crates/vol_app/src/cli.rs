@@ -5,6 +5,7 @@ use std::process::ExitCode;
 
 use clap::{Args, Parser, Subcommand};
 use glam::Vec3;
+use raycaster::prelude::{RenderMode, RendererKind, TaskOrder};
 
 /// Volume viewer and headless renderer for CPU ray casting.
 #[derive(Debug, Parser)]
@@ -186,40 +187,6 @@ impl Switch {
     }
 }
 
-/// Renderer choice.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, clap::ValueEnum)]
-pub enum RendererKind {
-    /// One thread, the reference.
-    Serial,
-    /// Screen tiles on a thread pool.
-    Tiles,
-    /// Object-parallel: bricks front to back into tiles (the default: the
-    /// fastest measured).
-    Object,
-}
-
-/// Object renderer task order.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, clap::ValueEnum)]
-pub enum TaskOrderArg {
-    /// A render thread keeps its tile until the tile is done.
-    TileFirst,
-    /// Every task goes back to the shared queue (the seed thesis's scheme).
-    Queue,
-}
-
-/// Rendering mode.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, clap::ValueEnum)]
-pub enum Mode {
-    /// Direct volume rendering (front-to-back compositing).
-    Dvr,
-    /// Maximum intensity projection.
-    Mip,
-    /// Mean value along each ray (x-ray).
-    Avg,
-    /// Isosurface at --iso.
-    Iso,
-}
-
 /// Options of `vol_app render`.
 #[derive(Debug, Args)]
 #[command(
@@ -265,8 +232,8 @@ pub struct RenderArgs {
     #[arg(long, value_name = "NAME")]
     pub tf_preset: Option<String>,
     /// Rendering mode.
-    #[arg(long, value_enum, default_value_t = Mode::Dvr)]
-    pub mode: Mode,
+    #[arg(long, value_enum, default_value_t = RenderMode::Dvr)]
+    pub mode: RenderMode,
     /// Iso value for --mode iso. Default: the middle of the data's value range.
     #[arg(long, value_name = "V", allow_hyphen_values = true)]
     pub iso: Option<f32>,
@@ -302,8 +269,8 @@ pub struct RenderArgs {
     pub composite_threads: u32,
     /// Object renderer: after a task a render thread continues with the same
     /// tile (tile-first, the default) or returns it to the shared queue.
-    #[arg(long, value_enum, default_value_t = TaskOrderArg::TileFirst)]
-    pub task_order: TaskOrderArg,
+    #[arg(long, value_enum, default_value_t = TaskOrder::TileFirst)]
+    pub task_order: TaskOrder,
     /// Background colour, each channel 0..1.
     #[arg(long, value_name = "R,G,B", value_parser = parse_vec3, default_value = "0,0,0")]
     pub background: Vec3,
@@ -328,29 +295,7 @@ pub struct RenderArgs {
 /// Parses the command line; on error prints one line (or the help text) and
 /// returns the exit code.
 pub fn parse() -> Result<Cli, ExitCode> {
-    match Cli::try_parse() {
-        Ok(cli) => Ok(cli),
-        Err(e) => {
-            use clap::error::ErrorKind::*;
-            match e.kind() {
-                DisplayHelp | DisplayVersion | DisplayHelpOnMissingArgumentOrSubcommand => {
-                    let _ = e.print();
-                    Err(if e.kind() == DisplayHelpOnMissingArgumentOrSubcommand {
-                        ExitCode::from(2)
-                    } else {
-                        ExitCode::SUCCESS
-                    })
-                }
-                _ => {
-                    let text = e.render().to_string();
-                    let first = text.lines().next().unwrap_or("invalid arguments");
-                    let first = first.trim_start_matches("error: ");
-                    eprintln!("vol_app: {first} (see --help)");
-                    Err(ExitCode::from(2))
-                }
-            }
-        }
-    }
+    Cli::try_parse().map_err(|e| raycaster::cli::parse_failure("vol_app", &e))
 }
 
 fn parse_vec3(s: &str) -> Result<Vec3, String> {

@@ -2,7 +2,7 @@
 
 use raycaster::prelude::*;
 use raycaster::storage::StorageKind;
-use vol_app::units::{bytes, value};
+use raycaster::units::{bytes, significant, value};
 
 use crate::anyhow_like::Error;
 use crate::cli::InfoArgs;
@@ -52,11 +52,8 @@ pub fn run(args: &InfoArgs) -> Result<(), Error> {
     println!("file         {}", args.file.display());
     println!("format       {}", info.format);
     println!("dimensions   {} x {} x {}", d.x, d.y, d.z);
-    println!("spacing      {} x {} x {}", s.x, s.y, s.z);
-    println!(
-        "extent       {} x {} x {} (world units)",
-        extent.x, extent.y, extent.z
-    );
+    println!("spacing      {}", triple(s));
+    println!("extent       {} (world units)", triple(extent));
     let order = info
         .byte_order
         .map(|e| format!(", {}-endian", e.name()))
@@ -84,6 +81,13 @@ pub fn run(args: &InfoArgs) -> Result<(), Error> {
         println!("note         {note}");
     }
     Ok(())
+}
+
+/// `0.703125 x 0.703125 x 2.5`: at most 6 significant digits, so that the
+/// float noise of a header (`3.0000002`) does not show.
+fn triple(v: glam::Vec3) -> String {
+    let [x, y, z] = v.to_array().map(|c| significant(c, 6));
+    format!("{x} x {y} x {z}")
 }
 
 /// `1.2 MiB (1234567 bytes)`.

@@ -3,5 +3,4 @@
 //! The binary (`src/main.rs`) adds the command line and `vol_app render`.
 
 pub mod demo;
-pub mod units;
 pub mod viewer;

@@ -18,20 +18,7 @@ use vol_app::demo;
 use vol_app::viewer::{self, StartOptions};
 
 fn main() -> ExitCode {
-    // A bug must still end in one line on stderr, never a backtrace dump.
-    std::panic::set_hook(Box::new(|info| {
-        let msg = info
-            .payload()
-            .downcast_ref::<&str>()
-            .map(|s| s.to_string())
-            .or_else(|| info.payload().downcast_ref::<String>().cloned())
-            .unwrap_or_else(|| "unknown panic".into());
-        let at = info
-            .location()
-            .map(|l| format!(" at {}:{}", l.file(), l.line()))
-            .unwrap_or_default();
-        eprintln!("vol_app: internal error: {msg}{at}");
-    }));
+    raycaster::cli::one_line_panics("vol_app");
     let cli = match cli::parse() {
         Ok(cli) => cli,
         Err(code) => return code,
@@ -45,7 +32,7 @@ fn main() -> ExitCode {
     match result {
         Ok(()) => ExitCode::SUCCESS,
         Err(e) => {
-            eprintln!("vol_app: {}", one_line(&e));
+            raycaster::cli::print_error("vol_app", e);
             ExitCode::FAILURE
         }
     }
@@ -67,6 +54,11 @@ fn run_viewer(args: cli::ViewerArgs) -> Result<(), anyhow_like::Error> {
         None => None,
     };
     let raw = args.raw.open_options(raycaster::storage::LoadMode::Map).raw;
+    // A file that cannot be opened is reported as such, before the window
+    // (or the lack of a display) comes into it.
+    if let Some(file) = &args.file {
+        check_readable(file, raw.is_some())?;
+    }
     viewer::run(StartOptions {
         file: args.file,
         tf_preset: args.tf_preset,
@@ -76,9 +68,16 @@ fn run_viewer(args: cli::ViewerArgs) -> Result<(), anyhow_like::Error> {
     Ok(())
 }
 
-/// The error and its causes on one line.
-fn one_line(e: &anyhow_like::Error) -> String {
-    e.to_string().replace('\n', " ")
+/// Checks that `file` exists and, unless it is raw (described by the
+/// `--raw-*` options), that its format is recognised: reads its first
+/// bytes, not the samples.
+fn check_readable(file: &std::path::Path, raw: bool) -> Result<(), anyhow_like::Error> {
+    if raw {
+        std::fs::metadata(file).map_err(|e| format!("{}: {e}", file.display()))?;
+    } else {
+        raycaster::format::detect(file)?;
+    }
+    Ok(())
 }
 
 /// A minimal boxed error for the command layer.

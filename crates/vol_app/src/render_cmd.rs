@@ -3,12 +3,11 @@
 use std::time::Instant;
 
 use raycaster::camera::{Camera, Projection};
-use raycaster::integrator::RenderMode;
 use raycaster::prelude::*;
 use raycaster::transfer::PRESET_NAMES;
 
 use crate::anyhow_like::Error;
-use crate::cli::{Mode, RenderArgs, RendererKind, TaskOrderArg};
+use crate::cli::RenderArgs;
 use crate::stats::{RenderStats, median, peak_rss_mb};
 
 /// Runs the `render` subcommand.
@@ -74,12 +73,7 @@ pub fn run(args: &RenderArgs) -> Result<(), Error> {
 
     let (lo, hi) = scene.value_range();
     let options = RenderOptions {
-        mode: match args.mode {
-            Mode::Dvr => RenderMode::Dvr,
-            Mode::Mip => RenderMode::Mip,
-            Mode::Avg => RenderMode::Avg,
-            Mode::Iso => RenderMode::Iso,
-        },
+        mode: args.mode,
         step: args.step,
         ert: args.ert.on(),
         ert_threshold: args.ert_threshold,
@@ -123,10 +117,7 @@ pub fn run(args: &RenderArgs) -> Result<(), Error> {
                 composite_threads: composite,
                 tile: args.tile.unwrap_or(ObjectConfig::DEFAULT_TILE),
                 brick: args.brick.unwrap_or(0),
-                order: match args.task_order {
-                    TaskOrderArg::TileFirst => TaskOrder::TileFirst,
-                    TaskOrderArg::Queue => TaskOrder::Queue,
-                },
+                order: args.task_order,
             })?)
         }
     };

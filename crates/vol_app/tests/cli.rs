@@ -3,49 +3,40 @@
 mod common;
 
 use std::path::PathBuf;
-use std::process::{Command, Output};
+use std::process::Output;
 
-use common::TempDir;
-use glam::{UVec3, Vec3};
-use raycaster::format::vol::{self, VolLayout};
-use raycaster::volume::{AnyVolume, Grid};
+use common::{
+    TempDir, assert_one_line_error, output, radial_vol_file, run_ok, vol_app, vol_app_on,
+};
+use glam::UVec3;
+use raycaster::format::vol::VolLayout;
 
-fn bin() -> Command {
-    let mut c = Command::new(env!("CARGO_BIN_EXE_vol_app"));
-    c.env("RUST_BACKTRACE", "1");
-    c
-}
-
-/// A 24³ ball of value 200 in a linear `.vol` file.
+/// A 24³ ball of value 200 in a `.vol` file.
 fn ball_file(dir: &TempDir, layout: VolLayout) -> PathBuf {
-    let grid = Grid::new(UVec3::splat(24), Vec3::ONE);
-    let v = AnyVolume::from_fn(grid, |p| {
-        if (p.as_vec3() - Vec3::splat(11.5)).length() < 8.0 {
-            200u8
-        } else {
-            0
-        }
-    });
-    let path = dir.path(&format!("ball_{layout:?}.vol").replace([' ', '{', '}', ':'], ""));
-    vol::write(&path, &v, layout).unwrap();
-    path
+    let name = format!("ball_{layout:?}.vol").replace([' ', '{', '}', ':'], "");
+    radial_vol_file(dir, &name, UVec3::splat(24), layout, |d| {
+        if d < 8.0 { 200 } else { 0 }
+    })
 }
 
-fn assert_one_line_error(out: &Output, needle: &str) {
-    let err = String::from_utf8_lossy(&out.stderr);
-    assert!(!out.status.success(), "expected failure, stderr: {err}");
-    assert_eq!(err.trim_end().lines().count(), 1, "not one line: {err}");
-    assert!(!err.contains("panicked"), "panic: {err}");
-    assert!(!err.contains("stack backtrace"), "backtrace: {err}");
-    assert!(err.contains(needle), "'{needle}' not in: {err}");
+/// Every one of `needles` is in what the run printed on stdout.
+fn assert_stdout_mentions(out: &Output, needles: &[&str]) {
+    let text = String::from_utf8_lossy(&out.stdout);
+    for needle in needles {
+        assert!(text.contains(needle), "'{needle}' not in:\n{text}");
+    }
+}
+
+/// `vol_app SUBCOMMAND MISSING` fails with one line naming the file.
+fn assert_missing_file_error(subcommand: &str, missing: &str) {
+    assert_one_line_error(&output(vol_app().args([subcommand, missing])), missing);
 }
 
 #[test]
 fn help_exits_zero_and_documents_options() {
-    let out = bin().args(["render", "--help"]).output().unwrap();
+    let out = vol_app().args(["render", "--help"]).output().unwrap();
     assert!(out.status.success());
-    let text = String::from_utf8_lossy(&out.stdout);
-    for opt in [
+    let options = [
         "--camera-pos",
         "--look-at",
         "--fov",
@@ -62,10 +53,9 @@ fn help_exits_zero_and_documents_options() {
         "--background",
         "--repeat",
         "--stats",
-    ] {
-        assert!(text.contains(opt), "{opt} missing from help");
-    }
-    assert!(bin().arg("--help").output().unwrap().status.success());
+    ];
+    assert_stdout_mentions(&out, &options);
+    assert!(vol_app().arg("--help").output().unwrap().status.success());
 }
 
 #[test]
@@ -74,17 +64,10 @@ fn renders_a_png_with_the_ball_in_the_middle() {
     for layout in [VolLayout::Linear, VolLayout::Bricked { side: 8 }] {
         let file = ball_file(&dir, layout);
         let png = dir.path("out.png");
-        let out = bin()
-            .arg("render")
-            .arg(&file)
-            .args(["--size", "64x48", "--tf-preset", "skull", "--out"])
-            .arg(&png)
-            .output()
-            .unwrap();
-        assert!(
-            out.status.success(),
-            "{}",
-            String::from_utf8_lossy(&out.stderr)
+        run_ok(
+            vol_app_on("render", &file)
+                .args(["--size", "64x48", "--tf-preset", "skull", "--out"])
+                .arg(&png),
         );
         let img = image::open(&png).unwrap().to_rgb8();
         assert_eq!(img.dimensions(), (64, 48));
@@ -98,27 +81,17 @@ fn stats_is_one_json_object_with_the_spec_fields() {
     let dir = TempDir::new("stats");
     let file = ball_file(&dir, VolLayout::Linear);
     for renderer in ["serial", "tiles", "object"] {
-        let out = bin()
-            .arg("render")
-            .arg(&file)
-            .args([
-                "--size",
-                "40x30",
-                "--repeat",
-                "3",
-                "--stats",
-                "--renderer",
-                renderer,
-                "--threads",
-                "2",
-            ])
-            .output()
-            .unwrap();
-        assert!(
-            out.status.success(),
-            "{}",
-            String::from_utf8_lossy(&out.stderr)
-        );
+        let out = run_ok(vol_app_on("render", &file).args([
+            "--size",
+            "40x30",
+            "--repeat",
+            "3",
+            "--stats",
+            "--renderer",
+            renderer,
+            "--threads",
+            "2",
+        ]));
         let v: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
         assert_eq!(v["width"], 40);
         assert_eq!(v["height"], 30);
@@ -146,29 +119,13 @@ fn stats_is_one_json_object_with_the_spec_fields() {
 fn negative_vector_values_are_accepted() {
     let dir = TempDir::new("neg");
     let file = ball_file(&dir, VolLayout::Linear);
-    let out = bin()
-        .arg("render")
-        .arg(&file)
-        .args([
-            "--size",
-            "16x16",
-            "--camera-pos",
-            "-30.5,-20,-40",
-            "--stats",
-        ])
-        .output()
-        .unwrap();
-    assert!(
-        out.status.success(),
-        "{}",
-        String::from_utf8_lossy(&out.stderr)
-    );
-}
-
-fn write_bytes(dir: &TempDir, name: &str, bytes: &[u8]) -> PathBuf {
-    let p = dir.path(name);
-    std::fs::write(&p, bytes).unwrap();
-    p
+    run_ok(vol_app_on("render", &file).args([
+        "--size",
+        "16x16",
+        "--camera-pos",
+        "-30.5,-20,-40",
+        "--stats",
+    ]));
 }
 
 fn header(dims: [u32; 3], spacing: [f32; 3], layout: u8, extra: u8) -> Vec<u8> {
@@ -229,21 +186,12 @@ fn bad_vol_files_give_one_line_errors_naming_the_file() {
     long.extend(vec![0u8; 65]);
     cases.push(("long.vol", long, "expected 90 bytes"));
     for (name, bytes, needle) in cases {
-        let p = write_bytes(&dir, name, &bytes);
-        let out = bin()
-            .arg("render")
-            .arg(&p)
-            .args(["--size", "8x8", "--stats"])
-            .output()
-            .unwrap();
+        let p = dir.write(name, &bytes);
+        let out = output(vol_app_on("render", &p).args(["--size", "8x8", "--stats"]));
         assert_one_line_error(&out, needle);
         assert_one_line_error(&out, name);
     }
-    let out = bin()
-        .args(["render", "/nonexistent/x.vol"])
-        .output()
-        .unwrap();
-    assert_one_line_error(&out, "/nonexistent/x.vol");
+    assert_missing_file_error("render", "/nonexistent/x.vol");
 }
 
 #[test]
@@ -268,24 +216,18 @@ fn bad_arguments_give_one_line_errors() {
         (vec!["--repeat", "0"], "0"),
     ];
     for (args, needle) in cases {
-        let out = bin()
-            .args(["render", f])
-            .args(&args)
-            .args(["--stats"])
-            .output()
-            .unwrap();
+        let out = output(vol_app().args(["render", f]).args(&args).args(["--stats"]));
         assert_one_line_error(&out, needle);
     }
-    let bad_tf = write_bytes(
-        &dir,
+    let bad_tf = dir.write(
         "bad.json",
         br#"{"points": [{"value": 1, "color": [1,1,1], "opacity": 3}]}"#,
     );
-    let out = bin()
-        .args(["render", f, "--stats", "--tf"])
-        .arg(&bad_tf)
-        .output()
-        .unwrap();
+    let out = output(
+        vol_app()
+            .args(["render", f, "--stats", "--tf"])
+            .arg(&bad_tf),
+    );
     assert_one_line_error(&out, "bad.json");
 }
 
@@ -293,22 +235,35 @@ fn bad_arguments_give_one_line_errors() {
 fn without_a_display_the_viewer_fails_with_one_line() {
     // No subcommand opens the viewer; with no display to open it on, that is
     // a one-line error that points to `vol_app render`.
-    let out = bin()
-        .env_remove("DISPLAY")
-        .env_remove("WAYLAND_DISPLAY")
-        .output()
-        .unwrap();
+    let out = output(
+        vol_app()
+            .env_remove("DISPLAY")
+            .env_remove("WAYLAND_DISPLAY"),
+    );
     assert_one_line_error(&out, "vol_app render");
 }
 
 #[test]
 fn viewer_arguments_are_checked_before_a_window_opens() {
-    let out = bin().args(["--tf-preset", "nope"]).output().unwrap();
+    let out = output(vol_app().args(["--tf-preset", "nope"]));
     assert_one_line_error(&out, "nope");
     let dir = TempDir::new("viewer_args");
-    let bad_tf = write_bytes(&dir, "bad_viewer.json", b"{");
-    let out = bin().arg("--tf").arg(&bad_tf).output().unwrap();
+    let bad_tf = dir.write("bad_viewer.json", b"{");
+    let out = output(vol_app().arg("--tf").arg(&bad_tf));
     assert_one_line_error(&out, "bad_viewer.json");
+    // A FILE that cannot be opened is what the error names, not the display.
+    let no_display = |file: &std::path::Path| {
+        output(
+            vol_app()
+                .arg(file)
+                .env_remove("DISPLAY")
+                .env_remove("WAYLAND_DISPLAY"),
+        )
+    };
+    let out = no_display("/nonexistent/nope.vol".as_ref());
+    assert_one_line_error(&out, "/nonexistent/nope.vol");
+    let out = no_display(&dir.write("notes.txt", b"not a volume"));
+    assert_one_line_error(&out, "notes.txt");
 }
 
 /// A file of the shared test data (../shared/data next to the repository,
@@ -338,34 +293,23 @@ fn info_describes_a_real_nrrd_file_as_text_and_json() {
     let Some(flair) = shared_data("mri_flair_nrrd/FLAIR.nrrd") else {
         return;
     };
-    let out = bin().arg("info").arg(&flair).output().unwrap();
-    assert!(
-        out.status.success(),
-        "{}",
-        String::from_utf8_lossy(&out.stderr)
-    );
-    let text = String::from_utf8_lossy(&out.stdout);
-    for needle in [
+    let out = run_ok(&mut vol_app_on("info", &flair));
+    let facts = [
         "NRRD",
         "124 x 160 x 140",
         "u8, gzip",
         "space directions",
         "0 .. 255",
-    ] {
-        assert!(text.contains(needle), "'{needle}' not in:\n{text}");
-    }
-    let out = bin().args(["info", "--json"]).arg(&flair).output().unwrap();
+    ];
+    assert_stdout_mentions(&out, &facts);
+    let out = output(vol_app_on("info", &flair).arg("--json"));
     assert!(out.status.success());
     let v: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
     assert_eq!(v["dims"], serde_json::json!([124, 160, 140]));
     assert_eq!(v["stored_type"], "u8");
     assert_eq!(v["encoding"], "gzip");
     assert_eq!(v["file_bytes"], std::fs::metadata(&flair).unwrap().len());
-    let out = bin()
-        .args(["info", "/nonexistent/head.nii.gz"])
-        .output()
-        .unwrap();
-    assert_one_line_error(&out, "/nonexistent/head.nii.gz");
+    assert_missing_file_error("info", "/nonexistent/head.nii.gz");
 }
 
 #[test]
@@ -374,7 +318,7 @@ fn raw_options_read_headerless_files_in_either_order() {
     let vol_file = ball_file(&dir, VolLayout::Linear);
     // The .vol's samples are z fastest: the same bytes as a raw z-fast file.
     let bytes = std::fs::read(&vol_file).unwrap();
-    let raw_z = write_bytes(&dir, "ball_z.raw", &bytes[26..]);
+    let raw_z = dir.write("ball_z.raw", &bytes[26..]);
     // And transposed to x fastest, as 16-bit big-endian.
     let mut xfast = Vec::new();
     for z in 0..24 {
@@ -385,21 +329,14 @@ fn raw_options_read_headerless_files_in_either_order() {
             }
         }
     }
-    let raw_x = write_bytes(&dir, "ball_x.bin", &xfast);
+    let raw_x = dir.write("ball_x.bin", &xfast);
     let render = |file: &PathBuf, extra: &[&str], png: &str| {
         let out_png = dir.path(png);
-        let out = bin()
-            .arg("render")
-            .arg(file)
-            .args(["--size", "32x32", "--tf-preset", "skull", "--out"])
-            .arg(&out_png)
-            .args(extra)
-            .output()
-            .unwrap();
-        assert!(
-            out.status.success(),
-            "{}",
-            String::from_utf8_lossy(&out.stderr)
+        run_ok(
+            vol_app_on("render", file)
+                .args(["--size", "32x32", "--tf-preset", "skull", "--out"])
+                .arg(&out_png)
+                .args(extra),
         );
         std::fs::read(out_png).unwrap()
     };
@@ -424,30 +361,21 @@ fn raw_options_read_headerless_files_in_either_order() {
     assert_eq!(z, want, "z-fast raw differs from the .vol");
     assert_eq!(x, want, "x-fast u16be raw differs from the .vol");
     // Wrong dimensions: the error says what was expected and found.
-    let out = bin()
-        .arg("render")
-        .arg(&raw_z)
-        .args([
-            "--raw-dims",
-            "24,24,25",
-            "--raw-type",
-            "u8",
-            "--size",
-            "8x8",
-        ])
-        .output()
-        .unwrap();
+    let out = output(vol_app_on("render", &raw_z).args([
+        "--raw-dims",
+        "24,24,25",
+        "--raw-type",
+        "u8",
+        "--size",
+        "8x8",
+    ]));
     assert_one_line_error(&out, "expected 14400 bytes");
     assert_one_line_error(&out, "ball_z.raw");
-    let out = bin()
-        .arg("render")
-        .arg(&raw_z)
-        .args(["--raw-dims", "24,24,24", "--raw-type", "u12"])
-        .output()
-        .unwrap();
+    let out =
+        output(vol_app_on("render", &raw_z).args(["--raw-dims", "24,24,24", "--raw-type", "u12"]));
     assert_one_line_error(&out, "unknown raw type 'u12'");
     // A .raw without a description says how to give one.
-    let out = bin().arg("info").arg(&raw_z).output().unwrap();
+    let out = output(&mut vol_app_on("info", &raw_z));
     assert_one_line_error(&out, "--raw-dims");
 }
 
@@ -457,18 +385,7 @@ fn convert_round_trips_through_every_output_format() {
     let original = ball_file(&dir, VolLayout::Linear);
     let convert = |input: &PathBuf, output: &str, extra: &[&str]| {
         let out_path = dir.path(output);
-        let out = bin()
-            .arg("convert")
-            .arg(input)
-            .arg(&out_path)
-            .args(extra)
-            .output()
-            .unwrap();
-        assert!(
-            out.status.success(),
-            "{}",
-            String::from_utf8_lossy(&out.stderr)
-        );
+        run_ok(vol_app_on("convert", input).arg(&out_path).args(extra));
         out_path
     };
     let nii = convert(&original, "a.nii.gz", &[]);
@@ -500,26 +417,20 @@ fn convert_round_trips_through_every_output_format() {
     };
     assert_eq!(voxels(&a), voxels(&b), "the chain changed the voxels");
     // Never overwrites without --force; a bad window or name is one line.
-    let out = bin()
-        .arg("convert")
-        .arg(&original)
-        .arg(&nii)
-        .output()
-        .unwrap();
-    assert_one_line_error(&out, "already exists");
-    let out = bin()
-        .arg("convert")
-        .arg(&original)
-        .arg(dir.path("e.vol"))
-        .args(["--window", "5,5"])
-        .output()
-        .unwrap();
-    assert_one_line_error(&out, "LO must be below HI");
-    let out = bin()
-        .arg("convert")
-        .arg(&original)
-        .arg(dir.path("e.png"))
-        .output()
-        .unwrap();
-    assert_one_line_error(&out, "cannot tell the output format");
+    let convert_fails = |output_file: &str, extra: &[&str]| {
+        output(
+            vol_app_on("convert", &original)
+                .arg(dir.path(output_file))
+                .args(extra),
+        )
+    };
+    assert_one_line_error(&convert_fails("a.nii.gz", &[]), "already exists");
+    assert_one_line_error(
+        &convert_fails("e.vol", &["--window", "5,5"]),
+        "LO must be below HI",
+    );
+    assert_one_line_error(
+        &convert_fails("e.png", &[]),
+        "cannot tell the output format",
+    );
 }

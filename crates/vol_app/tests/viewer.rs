@@ -8,17 +8,17 @@ use std::path::{Path, PathBuf};
 use std::sync::Arc;
 use std::time::{Duration, Instant};
 
-use common::TempDir;
+use common::{TempDir, radial_vol_file};
 use egui::{Event, Modifiers, PointerButton};
 use egui_kittest::Harness;
 use egui_kittest::kittest::Queryable;
 use glam::{UVec3, Vec3};
-use raycaster::format::vol::{self, VolLayout};
+use raycaster::format::vol::VolLayout;
 use raycaster::integrator::RenderMode;
+use raycaster::render::RendererKind;
 use raycaster::sample::SampleType;
 use raycaster::transfer::TransferFunction;
-use raycaster::volume::{AnyVolume, Grid};
-use vol_app::viewer::state::{Mode, RendererChoice, ResolutionChoice, StepChoice};
+use vol_app::viewer::state::{ResolutionChoice, StepChoice};
 use vol_app::viewer::{Settings, StartOptions, ViewerApp};
 
 const TIMEOUT: Duration = Duration::from_secs(25);
@@ -28,22 +28,16 @@ type H = Harness<'static, Option<ViewerApp>>;
 /// A `dims` volume holding a ball of value 100 (inside the `shapes` TF's
 /// bands) and a smaller one of 200, written as a `.vol` file.
 fn volume_file(dir: &TempDir, name: &str, dims: UVec3, layout: VolLayout) -> PathBuf {
-    let c = (dims.as_vec3() - 1.0) * 0.5;
     let r = dims.min_element() as f32 * 0.4;
-    let grid = Grid::new(dims, Vec3::ONE);
-    let v = AnyVolume::from_fn(grid, |p| {
-        let d = (p.as_vec3() - c).length();
+    radial_vol_file(dir, name, dims, layout, |d| {
         if d < r * 0.4 {
-            200u8
+            200
         } else if d < r {
             100
         } else {
             0
         }
-    });
-    let path = dir.path(name);
-    vol::write(&path, &v, layout).unwrap();
-    path
+    })
 }
 
 /// Settings that render quickly: a small fixed-size image, adaptive step.
@@ -132,19 +126,72 @@ impl egui::DroppedFile for Dropped {
     }
 }
 
+/// A viewer started on `start` with [`quick_settings`], settled.
+fn settled_harness(start: StartOptions) -> H {
+    let mut h = harness(start, quick_settings());
+    settle(&mut h);
+    h
+}
+
 fn open_file(dir: &TempDir) -> (H, PathBuf) {
     let path = volume_file(dir, "ball.vol", UVec3::new(40, 36, 32), VolLayout::Linear);
-    let mut h = harness(
-        StartOptions {
-            file: Some(path.clone()),
-            tf_preset: Some("shapes".into()),
-            tf: None,
-            raw: None,
-        },
-        quick_settings(),
-    );
-    settle(&mut h);
+    let h = settled_harness(StartOptions {
+        file: Some(path.clone()),
+        tf_preset: Some("shapes".into()),
+        tf: None,
+        raw: None,
+    });
     (h, path)
+}
+
+/// Drops `path` on the window and steps until it is open and rendered.
+fn drop_file(h: &mut H, path: &Path) {
+    h.input_mut()
+        .dropped_files
+        .push(Arc::new(Dropped(path.to_path_buf())));
+    step_until(h, &format!("the dropped {}", path.display()), |a| {
+        a.volume()
+            .is_some_and(|v| v.info.path.as_deref() == Some(path))
+    });
+    settle(h);
+}
+
+/// Presses or releases `button` at `pos`.
+fn button(h: &mut H, pos: egui::Pos2, button: PointerButton, pressed: bool) {
+    h.event(Event::PointerButton {
+        pos,
+        button,
+        pressed,
+        modifiers: Modifiers::NONE,
+    });
+}
+
+/// Presses `which` at `start` and moves the pointer `moves` times by
+/// `delta` (the button stays down); returns where the pointer ends.
+fn press_and_move(
+    h: &mut H,
+    start: egui::Pos2,
+    which: PointerButton,
+    delta: egui::Vec2,
+    moves: usize,
+) -> egui::Pos2 {
+    h.event(Event::PointerMoved(start));
+    button(h, start, which, true);
+    let mut p = start;
+    for _ in 0..moves {
+        p += delta;
+        h.event(Event::PointerMoved(p));
+    }
+    p
+}
+
+/// Opens the combo box `combo` and picks `item`.
+fn choose(h: &mut H, combo: &str, item: &str) {
+    h.get_by_label(combo).click();
+    h.step();
+    h.step();
+    h.get_by_label(item).click();
+    h.step();
 }
 
 #[test]
@@ -199,14 +246,7 @@ fn opens_a_dropped_file_and_shows_its_information() {
         UVec3::new(30, 26, 22),
         VolLayout::Bricked { side: 8 },
     );
-    h.input_mut()
-        .dropped_files
-        .push(Arc::new(Dropped(bricked.clone())));
-    step_until(&mut h, "the dropped file", |a| {
-        a.volume()
-            .is_some_and(|v| v.info.path.as_deref() == Some(bricked.as_path()))
-    });
-    settle(&mut h);
+    drop_file(&mut h, &bricked);
     let a = app(&h);
     let info = &a.volume().unwrap().info;
     assert_eq!(info.dims, UVec3::new(30, 26, 22));
@@ -256,14 +296,7 @@ fn opens_a_16_bit_nifti_with_a_rescale_and_shows_what_the_file_stores() {
         raycaster::format::samples::bytes(&bytes),
     )
     .unwrap();
-    h.input_mut()
-        .dropped_files
-        .push(Arc::new(Dropped(path.clone())));
-    step_until(&mut h, "the NIfTI file", |a| {
-        a.volume()
-            .is_some_and(|v| v.info.path.as_deref() == Some(path.as_path()))
-    });
-    settle(&mut h);
+    drop_file(&mut h, &path);
     let a = app(&h);
     assert!(a.error().is_none(), "{:?}", a.error());
     let info = &a.volume().unwrap().info;
@@ -296,16 +329,12 @@ fn opens_a_raw_file_described_on_the_command_line() {
         raycaster::format::Endian::Little,
     );
     raw.order = raycaster::volume::AxisOrder::ZFast;
-    let mut h = harness(
-        StartOptions {
-            file: Some(raw_path.clone()),
-            tf_preset: Some("shapes".into()),
-            raw: Some(raw),
-            ..Default::default()
-        },
-        quick_settings(),
-    );
-    settle(&mut h);
+    let h = settled_harness(StartOptions {
+        file: Some(raw_path.clone()),
+        tf_preset: Some("shapes".into()),
+        raw: Some(raw),
+        ..Default::default()
+    });
     let a = app(&h);
     assert!(a.error().is_none(), "{:?}", a.error());
     let info = &a.volume().expect("the raw volume").info;
@@ -323,11 +352,7 @@ fn switching_tf_preset_and_mode_renders_new_frames() {
     assert_eq!(app(&h).settings().tf_preset.as_deref(), Some("shapes"));
     let first = app(&h).last_frame().unwrap().frame.rgb.clone();
 
-    h.get_by_label("Preset").click();
-    h.step();
-    h.step();
-    h.get_by_label("skull").click();
-    h.step();
+    choose(&mut h, "Preset", "skull");
     let skull = TransferFunction::preset("skull", SampleType::U8).unwrap();
     assert_eq!(app(&h).settings().tf, skull);
     settle(&mut h);
@@ -343,7 +368,7 @@ fn switching_tf_preset_and_mode_renders_new_frames() {
     let n = app(&h).frames_received();
     h.get_by_label("MIP").click();
     h.step();
-    assert_eq!(app(&h).settings().mode, Mode::Mip);
+    assert_eq!(app(&h).settings().mode, RenderMode::Mip);
     settle(&mut h);
     let a = app(&h);
     assert_eq!(a.last_request().unwrap().options.mode, RenderMode::Mip);
@@ -387,13 +412,9 @@ fn ert_and_ess_toggles_reach_the_renderer() {
     );
 
     // The renderer choice reaches the status line.
-    h.get_by_label("Renderer").click();
-    h.step();
-    h.step();
-    h.get_by_label("serial").click();
-    h.step();
+    choose(&mut h, "Renderer", "serial");
     settle(&mut h);
-    assert_eq!(app(&h).settings().renderer, RendererChoice::Serial);
+    assert_eq!(app(&h).settings().renderer, RendererKind::Serial);
     assert_eq!(app(&h).last_frame().unwrap().renderer, "serial");
     h.get_by_label_contains("serial ×1");
 }
@@ -408,18 +429,7 @@ fn dragging_on_the_canvas_orbits_pans_and_renders_new_frames() {
 
     // Left drag: orbit, with preview frames while the button is down.
     let p0 = canvas.center();
-    h.event(Event::PointerMoved(p0));
-    h.event(Event::PointerButton {
-        pos: p0,
-        button: PointerButton::Primary,
-        pressed: true,
-        modifiers: Modifiers::NONE,
-    });
-    let mut p = p0;
-    for _ in 0..6 {
-        p += egui::vec2(15.0, 5.0);
-        h.event(Event::PointerMoved(p));
-    }
+    let p = press_and_move(&mut h, p0, PointerButton::Primary, egui::vec2(15.0, 5.0), 6);
     h.step();
     let during = app(&h).last_request().unwrap().clone();
     assert!(during.preview, "a moving camera should get preview frames");
@@ -427,12 +437,7 @@ fn dragging_on_the_canvas_orbits_pans_and_renders_new_frames() {
         during.options.step.unwrap() > 0.5,
         "preview frames use the coarse step"
     );
-    h.event(Event::PointerButton {
-        pos: p,
-        button: PointerButton::Primary,
-        pressed: false,
-        modifiers: Modifiers::NONE,
-    });
+    button(&mut h, p, PointerButton::Primary, false);
     settle(&mut h);
     let a = app(&h);
     let cam1 = *a.camera();
@@ -458,22 +463,14 @@ fn dragging_on_the_canvas_orbits_pans_and_renders_new_frames() {
 
     // Right drag: pan.
     let n1 = a.frames_received();
-    h.event(Event::PointerMoved(p0));
-    h.event(Event::PointerButton {
-        pos: p0,
-        button: PointerButton::Secondary,
-        pressed: true,
-        modifiers: Modifiers::NONE,
-    });
-    for k in 1..=5 {
-        h.event(Event::PointerMoved(p0 + egui::vec2(-10.0 * k as f32, 0.0)));
-    }
-    h.event(Event::PointerButton {
-        pos: p0 + egui::vec2(-50.0, 0.0),
-        button: PointerButton::Secondary,
-        pressed: false,
-        modifiers: Modifiers::NONE,
-    });
+    let end = press_and_move(
+        &mut h,
+        p0,
+        PointerButton::Secondary,
+        egui::vec2(-10.0, 0.0),
+        5,
+    );
+    button(&mut h, end, PointerButton::Secondary, false);
     settle(&mut h);
     let a = app(&h);
     assert_ne!(a.camera().target, cam1.target, "right drag pans");
@@ -586,12 +583,7 @@ fn the_tf_editor_adds_points_and_the_tf_round_trips_through_json() {
     let at = curve.left_top() + egui::vec2(curve.width() * 0.2, 20.0);
     for _ in 0..2 {
         for pressed in [true, false] {
-            h.event(Event::PointerButton {
-                pos: at,
-                button: PointerButton::Primary,
-                pressed,
-                modifiers: Modifiers::NONE,
-            });
+            button(&mut h, at, PointerButton::Primary, pressed);
         }
     }
     h.event(Event::PointerMoved(at));
@@ -610,30 +602,20 @@ fn the_tf_editor_adds_points_and_the_tf_round_trips_through_json() {
     let k = app(&h).settings().tf.points.len() - 2;
     let before = app(&h).settings().tf.points[k];
     let start = app(&h).tf_editor().point_positions()[k];
-    h.event(Event::PointerMoved(start));
-    h.event(Event::PointerButton {
-        pos: start,
-        button: PointerButton::Primary,
-        pressed: true,
-        modifiers: Modifiers::NONE,
-    });
-    let mut p = start;
-    for _ in 0..5 {
-        p += egui::vec2(-6.0, -8.0);
-        h.event(Event::PointerMoved(p));
-    }
+    let p = press_and_move(
+        &mut h,
+        start,
+        PointerButton::Primary,
+        egui::vec2(-6.0, -8.0),
+        5,
+    );
     h.step();
     assert!(app(&h).tf_editor().is_dragging());
     assert!(
         app(&h).last_request().unwrap().preview,
         "TF drags render previews"
     );
-    h.event(Event::PointerButton {
-        pos: p,
-        button: PointerButton::Primary,
-        pressed: false,
-        modifiers: Modifiers::NONE,
-    });
+    button(&mut h, p, PointerButton::Primary, false);
     settle(&mut h);
     let tf = &app(&h).settings().tf;
     assert!(tf.points[k].opacity > before.opacity);
@@ -668,7 +650,7 @@ fn the_ui_keeps_running_while_a_slow_frame_renders() {
     // One thread, a fine step and a large image: a slow frame.
     {
         let s = app_mut(&mut h).settings_mut();
-        s.renderer = RendererChoice::Serial;
+        s.renderer = RendererKind::Serial;
         s.resolution = ResolutionChoice::Fixed;
         s.fixed_size = 1400;
         s.step = StepChoice::Fine;
@@ -730,7 +712,7 @@ fn settings_persist_through_eframe_storage() {
     eframe::App::save(app_mut(&mut h), &mut storage);
     let restored = Settings::load(Some(&storage));
     assert_eq!(&restored, app(&h).settings());
-    assert_eq!(restored.mode, Mode::Mip);
+    assert_eq!(restored.mode, RenderMode::Mip);
     assert!(!restored.ess);
     assert_eq!(restored.step, StepChoice::Coarse);
     assert_eq!(restored.last_dir.as_deref(), path.parent());
@@ -742,14 +724,10 @@ fn long_file_names_do_not_widen_the_panel() {
     let dir = TempDir::new("a_rather_long_directory_name_without_any_spaces_in_it");
     let name = "a_volume_file_with_a_rather_long_name_that_must_not_widen_the_panel.vol";
     let path = volume_file(&dir, name, UVec3::new(20, 20, 20), VolLayout::Linear);
-    let mut h = harness(
-        StartOptions {
-            file: Some(path),
-            ..Default::default()
-        },
-        quick_settings(),
-    );
-    settle(&mut h);
+    let mut h = settled_harness(StartOptions {
+        file: Some(path),
+        ..Default::default()
+    });
     h.run_steps(5);
     assert_eq!(app(&h).volume().unwrap().info.name, name);
     assert!(h.query_all_by_label_contains("the_panel.vol").count() > 0);

@@ -253,28 +253,20 @@ mod tests {
         Cli::try_parse_from(std::iter::once("vol_gen").chain(args.iter().copied()))
     }
 
+    /// The example at the end of `--help` (the seed thesis's command), as
+    /// arguments after the program name.
+    fn help_example() -> Vec<&'static str> {
+        let (_, example) = AFTER_HELP
+            .split_once("Example (the seed thesis's benchmark volume):")
+            .expect("the help ends with an example");
+        let mut words = example.split_whitespace().filter(|w| *w != "\\");
+        assert_eq!(words.next(), Some("vol_gen"));
+        words.collect()
+    }
+
     #[test]
     fn thesis_spellings() {
-        let cli = parse(&[
-            "--dims=800,800,800",
-            "--generator",
-            "shapes",
-            "--seed",
-            "2",
-            "--n-of-shapes",
-            "70",
-            "--sample",
-            "100",
-            "--output-file",
-            "volumes/800shapes_block16.vol",
-            "--layout",
-            "z",
-            "--block-size",
-            "16",
-            "--object-size",
-            "70",
-        ])
-        .unwrap();
+        let cli = parse(&help_example()).unwrap();
         let c = Config::from_cli(cli).unwrap();
         assert_eq!(c.header.dims, UVec3::splat(800));
         assert_eq!(c.header.layout, VolLayout::Bricked { side: 16 });

@@ -29,32 +29,9 @@ pub fn available_bytes(dir: &Path) -> Option<u64> {
     }
 }
 
-/// `bytes` in decimal units with one decimal (`9.8 GB`), as disk sizes are sold.
-pub fn human(bytes: u64) -> String {
-    const UNITS: [&str; 6] = ["B", "kB", "MB", "GB", "TB", "PB"];
-    let mut value = bytes as f64;
-    let mut unit = 0;
-    while value >= 1000.0 && unit + 1 < UNITS.len() {
-        value /= 1000.0;
-        unit += 1;
-    }
-    if unit == 0 {
-        format!("{bytes} B")
-    } else {
-        format!("{value:.1} {}", UNITS[unit])
-    }
-}
-
 #[cfg(test)]
 mod tests {
     use super::*;
-
-    #[test]
-    fn human_sizes() {
-        assert_eq!(human(26), "26 B");
-        assert_eq!(human(9_800_000_000), "9.8 GB");
-        assert_eq!(human(512_000_026), "512.0 MB");
-    }
 
     #[test]
     fn the_current_directory_has_some_space() {

@@ -38,6 +38,7 @@ use std::time::Instant;
 
 use clap::Parser;
 use raycaster::format::vol::VolLayout;
+use raycaster::units::bytes;
 
 pub use error::{Error, Result};
 
@@ -149,8 +150,8 @@ fn check_output(path: &Path, force: bool, need: u64) -> Result<()> {
         return Err(Error::Failed(format!(
             "not enough free space in {}: {shown} needs {} ({need} bytes), {} available",
             dir.display(),
-            disk::human(need),
-            disk::human(free)
+            bytes(need),
+            bytes(free)
         )));
     }
     Ok(())
@@ -185,74 +186,34 @@ pub fn run(cli: Cli) -> Result<Summary> {
             VolLayout::Bricked { side } => format!("bricked B={side}"),
         };
         eprintln!(
-            "vol_gen: wrote {} ({}x{}x{} {}, {}, {}) in {:.2} s, {:.1} MB/s",
+            "vol_gen: wrote {} ({}x{}x{} {}, {}, {}) in {:.2} s, {}/s",
             summary.path.display(),
             d.x,
             d.y,
             d.z,
             c.generator.name(),
             layout,
-            disk::human(summary.bytes),
+            bytes(summary.bytes),
             summary.seconds,
-            summary.bytes as f64 / 1e6 / summary.seconds.max(1e-9)
+            bytes((summary.bytes as f64 / summary.seconds.max(1e-9)) as u64)
         );
     }
     Ok(summary)
-}
-
-/// A clap error as one line (its text up to the usage, without the `error:` prefix).
-fn one_line(e: &clap::Error) -> String {
-    let text = e.render().to_string();
-    let mut parts = Vec::new();
-    for line in text.lines() {
-        let line = line.trim();
-        if line.starts_with("Usage:") || line.starts_with("For more information") {
-            break;
-        }
-        if !line.is_empty() {
-            parts.push(line.strip_prefix("error: ").unwrap_or(line));
-        }
-    }
-    format!("{} (see --help)", parts.join(" "))
 }
 
 /// The program: parses `std::env::args`, runs, and turns any error into one
 /// line on stderr and a non-zero exit code (2 for usage, 130 for Ctrl-C, 1
 /// otherwise). Never shows a panic or a backtrace.
 pub fn main_entry() -> ExitCode {
-    std::panic::set_hook(Box::new(|info| {
-        let payload = info
-            .payload()
-            .downcast_ref::<&str>()
-            .map(|s| s.to_string())
-            .or_else(|| info.payload().downcast_ref::<String>().cloned())
-            .unwrap_or_default();
-        let at = info
-            .location()
-            .map(|l| format!(" ({}:{})", l.file(), l.line()))
-            .unwrap_or_default();
-        eprintln!("vol_gen: internal error: {payload}{at}");
-    }));
+    raycaster::cli::one_line_panics("vol_gen");
     let cli = match Cli::try_parse() {
         Ok(cli) => cli,
-        Err(e) => {
-            use clap::error::ErrorKind;
-            return match e.kind() {
-                ErrorKind::DisplayHelp | ErrorKind::DisplayVersion => {
-                    let _ = e.print();
-                    ExitCode::SUCCESS
-                }
-                _ => {
-                    eprintln!("vol_gen: error: {}", one_line(&e));
-                    ExitCode::from(2)
-                }
-            };
-        }
+        Err(e) => return raycaster::cli::parse_failure("vol_gen", &e),
     };
     match run(cli) {
         Ok(_) => ExitCode::SUCCESS,
         Err(e) => {
-            eprintln!("vol_gen: error: {e}");
+            raycaster::cli::print_error("vol_gen", &e);
             ExitCode::from(e.exit_code())
         }
     }

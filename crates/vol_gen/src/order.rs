@@ -57,6 +57,13 @@ enum Piece {
     BrickPlanes { brick: u64, x0: u32, x1: u32 },
 }
 
+/// Cuts `len` items holding `bytes` bytes in all into near-equal pieces of
+/// about [`PIECE_BYTES`] at most: `(items per piece, pieces)`.
+fn cut(len: u64, bytes: u64) -> (u64, u64) {
+    let k = len.div_ceil(bytes.div_ceil(PIECE_BYTES));
+    (k, len.div_ceil(k))
+}
+
 /// The order in which a volume's samples are produced and written.
 #[derive(Debug, Clone, Copy)]
 pub struct Plan {
@@ -79,27 +86,19 @@ impl Plan {
                 let total = x.checked_mul(y)?.checked_mul(z)?;
                 let slab = y * z;
                 let (split, pieces) = if z >= PIECE_BYTES {
-                    let per_row = z.div_ceil(PIECE_BYTES);
-                    let k = z.div_ceil(per_row);
-                    let per_row = z.div_ceil(k);
-                    (
-                        Split::Runs {
-                            k: k as u32,
-                            per_row: per_row as u32,
-                        },
-                        (x * y).checked_mul(per_row)?,
-                    )
+                    let (k, per_row) = cut(z, z);
+                    let split = Split::Runs {
+                        k: k as u32,
+                        per_row: per_row as u32,
+                    };
+                    (split, (x * y).checked_mul(per_row)?)
                 } else if slab >= PIECE_BYTES {
-                    let per_slab = slab.div_ceil(PIECE_BYTES);
-                    let k = y.div_ceil(per_slab);
-                    let per_slab = y.div_ceil(k);
-                    (
-                        Split::Rows {
-                            k: k as u32,
-                            per_slab: per_slab as u32,
-                        },
-                        x * per_slab,
-                    )
+                    let (k, per_slab) = cut(y, slab);
+                    let split = Split::Rows {
+                        k: k as u32,
+                        per_slab: per_slab as u32,
+                    };
+                    (split, x * per_slab)
                 } else {
                     let k = (PIECE_BYTES / slab).clamp(1, x);
                     (Split::Slabs { k: k as u32 }, x.div_ceil(k))

@@ -2,68 +2,18 @@
 //! library's reader, file sizes per SPEC §1, determinism, safety (overwrite,
 //! bad arguments, Ctrl-C) and the seed thesis's argument spellings.
 
-use std::path::{Path, PathBuf};
-use std::process::{Command, Output};
+mod common;
+
+use std::path::Path;
 use std::time::{Duration, Instant};
+
+use common::{TempDir, args_around, run, run_ok, stderr, vol_gen};
 
 use glam::UVec3;
 use raycaster::format::vol;
 use raycaster::storage::LoadMode;
 
 const GENERATORS: [&str; 6] = ["shapes", "solid", "noise", "sphere", "sdf", "metaballs"];
-
-/// A directory removed when dropped.
-struct TempDir(PathBuf);
-
-impl TempDir {
-    fn new(name: &str) -> Self {
-        let dir = std::env::temp_dir().join(format!("vol_gen-test-{name}-{}", std::process::id()));
-        let _ = std::fs::remove_dir_all(&dir);
-        std::fs::create_dir_all(&dir).unwrap();
-        TempDir(dir)
-    }
-    fn path(&self, file: &str) -> PathBuf {
-        self.0.join(file)
-    }
-    fn entries(&self) -> Vec<String> {
-        let mut v: Vec<String> = std::fs::read_dir(&self.0)
-            .unwrap()
-            .map(|e| e.unwrap().file_name().to_string_lossy().into_owned())
-            .collect();
-        v.sort();
-        v
-    }
-}
-
-impl Drop for TempDir {
-    fn drop(&mut self) {
-        let _ = std::fs::remove_dir_all(&self.0);
-    }
-}
-
-fn vol_gen() -> Command {
-    let mut c = Command::new(env!("CARGO_BIN_EXE_vol_gen"));
-    c.env("RUST_BACKTRACE", "1");
-    c
-}
-
-fn run(args: &[&str]) -> Output {
-    vol_gen().args(args).output().unwrap()
-}
-
-fn run_ok(args: &[&str]) -> Output {
-    let out = run(args);
-    assert!(
-        out.status.success(),
-        "vol_gen {args:?} failed: {}",
-        String::from_utf8_lossy(&out.stderr)
-    );
-    out
-}
-
-fn stderr(out: &Output) -> String {
-    String::from_utf8_lossy(&out.stderr).into_owned()
-}
 
 /// The file length SPEC §1 gives, computed independently of the library.
 fn spec_len(dims: [u64; 3], side: Option<u64>) -> u64 {
@@ -98,24 +48,12 @@ fn every_generator_round_trips_linear_and_bricked() {
     let dir = TempDir::new("roundtrip");
     let dims = [37u64, 20, 9];
     for generator in GENERATORS {
+        let base = format!(
+            "--dims 37,20,9 --generator {generator} --seed 11 --quiet --n-of-shapes 6 \
+             --object-size 10 --shape 1,1.5,2"
+        );
         let linear = dir.path(&format!("{generator}_linear.vol"));
-        run_ok(&[
-            "--dims",
-            "37,20,9",
-            "--generator",
-            generator,
-            "--seed",
-            "11",
-            "--quiet",
-            "--n-of-shapes",
-            "6",
-            "--object-size",
-            "10",
-            "--shape",
-            "1,1.5,2",
-            "-o",
-            linear.to_str().unwrap(),
-        ]);
+        run_ok(&args_around(&format!("{base} -o"), &linear, ""));
         assert_eq!(
             std::fs::metadata(&linear).unwrap().len(),
             spec_len(dims, None)
@@ -131,27 +69,8 @@ fn every_generator_round_trips_linear_and_bricked() {
         }
         for side in [2u64, 5, 16] {
             let bricked = dir.path(&format!("{generator}_b{side}.vol"));
-            run_ok(&[
-                "--dims",
-                "37,20,9",
-                "--generator",
-                generator,
-                "--seed",
-                "11",
-                "--quiet",
-                "--n-of-shapes",
-                "6",
-                "--object-size",
-                "10",
-                "--shape",
-                "1,1.5,2",
-                "--layout",
-                "bricked",
-                "--block-size",
-                &side.to_string(),
-                "-o",
-                bricked.to_str().unwrap(),
-            ]);
+            let args = format!("{base} --layout bricked --block-size {side} -o");
+            run_ok(&args_around(&args, &bricked, ""));
             assert_eq!(
                 std::fs::metadata(&bricked).unwrap().len(),
                 spec_len(dims, Some(side)),
@@ -173,34 +92,10 @@ fn degenerate_dimensions_round_trip() {
         let d: Vec<u64> = dims.split(',').map(|s| s.parse().unwrap()).collect();
         let linear = dir.path("l.vol");
         let bricked = dir.path("b.vol");
-        run_ok(&[
-            "--dims",
-            dims,
-            "-g",
-            "solid",
-            "--sample",
-            "7",
-            "-q",
-            "-f",
-            "-o",
-            linear.to_str().unwrap(),
-        ]);
-        run_ok(&[
-            "--dims",
-            dims,
-            "-g",
-            "solid",
-            "--sample",
-            "7",
-            "-q",
-            "-f",
-            "--layout",
-            "z",
-            "--block-size",
-            "3",
-            "-o",
-            bricked.to_str().unwrap(),
-        ]);
+        let solid = format!("--dims {dims} -g solid --sample 7 -q -f");
+        run_ok(&args_around(&format!("{solid} -o"), &linear, ""));
+        let args = format!("{solid} --layout z --block-size 3 -o");
+        run_ok(&args_around(&args, &bricked, ""));
         assert_eq!(
             std::fs::metadata(&linear).unwrap().len(),
             spec_len([d[0], d[1], d[2]], None)
@@ -229,29 +124,13 @@ fn output_does_not_depend_on_the_thread_count() {
         let mut files = Vec::new();
         for threads in ["1", "2"] {
             let path = dir.path(&format!("{generator}_{layout}_{threads}.vol"));
+            let args = format!(
+                "--dims 190,150,170 -g {generator} --seed 4 --layout {layout} --block-size 9 \
+                 --n-of-shapes 40 --object-size 30 --octaves 2 -q -o"
+            );
             let out = vol_gen()
                 .env("RAYON_NUM_THREADS", threads)
-                .args([
-                    "--dims",
-                    "190,150,170",
-                    "-g",
-                    generator,
-                    "--seed",
-                    "4",
-                    "--layout",
-                    layout,
-                    "--block-size",
-                    "9",
-                    "--n-of-shapes",
-                    "40",
-                    "--object-size",
-                    "30",
-                    "--octaves",
-                    "2",
-                    "-q",
-                    "-o",
-                    path.to_str().unwrap(),
-                ])
+                .args(args_around(&args, &path, ""))
                 .output()
                 .unwrap();
             assert!(out.status.success(), "{}", stderr(&out));
@@ -268,14 +147,8 @@ fn output_does_not_depend_on_the_thread_count() {
 fn a_random_seed_is_printed_and_repeats_the_volume() {
     let dir = TempDir::new("seed");
     let a = dir.path("a.vol");
-    let out = run_ok(&[
-        "--dims",
-        "30,20,10",
-        "-g",
-        "shapes",
-        "-o",
-        a.to_str().unwrap(),
-    ]);
+    let shapes = "--dims 30,20,10 -g shapes";
+    let out = run_ok(&args_around(&format!("{shapes} -o"), &a, ""));
     let err = stderr(&out);
     let seed = err
         .split_whitespace()
@@ -284,31 +157,19 @@ fn a_random_seed_is_printed_and_repeats_the_volume() {
         .unwrap_or_else(|| panic!("no seed in {err:?}"))
         .to_string();
     let b = dir.path("b.vol");
-    run_ok(&[
-        "--dims",
-        "30,20,10",
-        "-g",
-        "shapes",
-        "--seed",
-        &seed,
-        "-q",
-        "-o",
-        b.to_str().unwrap(),
-    ]);
+    run_ok(&args_around(
+        &format!("{shapes} --seed {seed} -q -o"),
+        &b,
+        "",
+    ));
     assert!(std::fs::read(&a).unwrap() == std::fs::read(&b).unwrap());
     let c = dir.path("c.vol");
     let other = (seed.parse::<u64>().unwrap() ^ 1).to_string();
-    run_ok(&[
-        "--dims",
-        "30,20,10",
-        "-g",
-        "shapes",
-        "--seed",
-        &other,
-        "-q",
-        "-o",
-        c.to_str().unwrap(),
-    ]);
+    run_ok(&args_around(
+        &format!("{shapes} --seed {other} -q -o"),
+        &c,
+        "",
+    ));
     assert!(std::fs::read(&a).unwrap() != std::fs::read(&c).unwrap());
 }
 
@@ -317,27 +178,15 @@ fn refuses_to_overwrite_without_force() {
     let dir = TempDir::new("overwrite");
     let path = dir.path("v.vol");
     std::fs::write(&path, b"precious").unwrap();
-    let out = run(&[
-        "--dims",
-        "4,4,4",
-        "-g",
-        "solid",
-        "-o",
-        path.to_str().unwrap(),
-    ]);
+    let out = run(&args_around("--dims 4,4,4 -g solid -o", &path, ""));
     assert!(!out.status.success());
     assert!(stderr(&out).contains("--force"), "{}", stderr(&out));
     assert_eq!(std::fs::read(&path).unwrap(), b"precious");
-    run_ok(&[
-        "--dims",
-        "4,4,4",
-        "-g",
-        "solid",
-        "-q",
-        "--force",
-        "-o",
-        path.to_str().unwrap(),
-    ]);
+    run_ok(&args_around(
+        "--dims 4,4,4 -g solid -q --force -o",
+        &path,
+        "",
+    ));
     assert_eq!(std::fs::metadata(&path).unwrap().len(), 26 + 64);
     assert_eq!(dir.entries(), ["v.vol"]);
 }
@@ -346,99 +195,40 @@ fn refuses_to_overwrite_without_force() {
 fn bad_arguments_give_one_line_and_no_file() {
     let dir = TempDir::new("badargs");
     let out_file = dir.path("x.vol");
-    let o = out_file.to_str().unwrap();
-    let cases: &[(&[&str], &str)] = &[
+    let cases: &[(&str, &str)] = &[
+        ("--dims 5,5,5 -g solid --layout z --block-size 1", "2..=255"),
         (
-            &[
-                "--dims",
-                "5,5,5",
-                "-g",
-                "solid",
-                "--layout",
-                "z",
-                "--block-size",
-                "1",
-            ],
+            "--dims 5,5,5 -g solid --layout z --block-size 256",
             "2..=255",
         ),
+        ("--dims 0,5,5 -g solid", "at least 1"),
+        ("--dims 5,5,0 -g solid", "at least 1"),
+        ("--dims 5,5 -g solid", "three"),
+        ("--dims 5,5,5 -g solid --shape 1,NaN,1", "finite"),
+        ("--dims 5,5,5 -g solid --shape 0,1,1", "finite"),
+        ("--dims 5,5,5 -g solid --shape 1,1,inf", "finite"),
         (
-            &[
-                "--dims",
-                "5,5,5",
-                "-g",
-                "solid",
-                "--layout",
-                "z",
-                "--block-size",
-                "256",
-            ],
-            "2..=255",
-        ),
-        (&["--dims", "0,5,5", "-g", "solid"], "at least 1"),
-        (&["--dims", "5,5,0", "-g", "solid"], "at least 1"),
-        (&["--dims", "5,5", "-g", "solid"], "three"),
-        (
-            &["--dims", "5,5,5", "-g", "solid", "--shape", "1,NaN,1"],
-            "finite",
-        ),
-        (
-            &["--dims", "5,5,5", "-g", "solid", "--shape", "0,1,1"],
-            "finite",
-        ),
-        (
-            &["--dims", "5,5,5", "-g", "solid", "--shape", "1,1,inf"],
-            "finite",
-        ),
-        (
-            &["--dims", "4294967295,4294967295,4294967295", "-g", "solid"],
+            "--dims 4294967295,4294967295,4294967295 -g solid",
             "overflow",
         ),
         (
-            &[
-                "--dims",
-                "4294967295,4294967295,4294967295",
-                "-g",
-                "solid",
-                "--layout",
-                "z",
-                "--block-size",
-                "2",
-            ],
+            "--dims 4294967295,4294967295,4294967295 -g solid --layout z --block-size 2",
             "overflow",
         ),
+        ("--dims 100000,100000,100000 -g solid", "free space"),
+        ("--dims 5,5,5 -g plasma", "plasma"),
+        ("--dims 5,5,5 -g noise --octaves 0", "octaves"),
+        ("--dims 5,5,5 -g sdf --band NaN", "band"),
+        ("--dims 5,5,5 -g shapes --object-size 0", "object-size"),
         (
-            &["--dims", "100000,100000,100000", "-g", "solid"],
-            "free space",
-        ),
-        (&["--dims", "5,5,5", "-g", "plasma"], "plasma"),
-        (
-            &["--dims", "5,5,5", "-g", "noise", "--octaves", "0"],
-            "octaves",
-        ),
-        (&["--dims", "5,5,5", "-g", "sdf", "--band", "NaN"], "band"),
-        (
-            &["--dims", "5,5,5", "-g", "shapes", "--object-size", "0"],
-            "object-size",
-        ),
-        (
-            &[
-                "--dims",
-                "5,5,5",
-                "-g",
-                "shapes",
-                "--n-of-shapes",
-                "4000000000",
-            ],
+            "--dims 5,5,5 -g shapes --n-of-shapes 4000000000",
             "n-of-shapes",
         ),
-        (
-            &["--dims", "5,5,5", "-g", "solid", "--sample", "256"],
-            "256",
-        ),
-        (&["-g", "solid"], "--dims"),
+        ("--dims 5,5,5 -g solid --sample 256", "256"),
+        ("-g solid", "--dims"),
     ];
     for (args, needle) in cases {
-        let out = vol_gen().args(*args).args(["-o", o]).output().unwrap();
+        let out = run(&args_around(&format!("{args} -o"), &out_file, ""));
         let err = stderr(&out);
         assert!(!out.status.success(), "{args:?} succeeded");
         assert_eq!(err.lines().count(), 1, "{args:?}: {err}");
@@ -454,14 +244,11 @@ fn bad_arguments_give_one_line_and_no_file() {
             dir.entries()
         );
     }
-    let missing = run(&[
-        "--dims",
-        "5,5,5",
-        "-g",
-        "solid",
-        "-o",
-        "/nonexistent-dir/x.vol",
-    ]);
+    let missing = run(&args_around(
+        "--dims 5,5,5 -g solid -o",
+        Path::new("/nonexistent-dir/x.vol"),
+        "",
+    ));
     assert!(!missing.status.success());
     assert_eq!(stderr(&missing).lines().count(), 1);
 }
@@ -492,28 +279,14 @@ fn thesis_commands_run_unchanged() {
     let dir = TempDir::new("thesis");
     // The command that made shared/data/interop/shapes_96x80x64_*.vol.
     let interop = Path::new(env!("CARGO_MANIFEST_DIR")).join("../../../shared/data/interop");
-    for (layout, name) in [
-        (&["--layout", "z", "--block-size", "16"][..], "block16"),
-        (&[][..], "linear"),
-    ] {
+    for (layout, name) in [("--layout z --block-size 16", "block16"), ("", "linear")] {
         let path = dir.path(&format!("shapes_96x80x64_{name}.vol"));
-        let mut args = vec![
-            "--dims=96,80,64",
-            "--generator",
-            "shapes",
-            "--seed",
-            "3",
-            "--n-of-shapes",
-            "8",
-            "--sample",
-            "100",
-            "--object-size",
-            "24",
-            "--output-file",
-            path.to_str().unwrap(),
-        ];
-        args.extend_from_slice(layout);
-        run_ok(&args);
+        run_ok(&args_around(
+            "--dims=96,80,64 --generator shapes --seed 3 --n-of-shapes 8 --sample 100 \
+             --object-size 24 --output-file",
+            &path,
+            layout,
+        ));
         let ours = std::fs::read(&path).unwrap();
         let reference = interop.join(format!("shapes_96x80x64_{name}.vol"));
         if let Ok(theirs) = std::fs::read(&reference) {
@@ -529,25 +302,11 @@ fn thesis_commands_run_unchanged() {
     }
     // The README's 800³ command, shrunk, with -o.
     let path = dir.path("800shapes_block16.vol");
-    run_ok(&[
-        "--dims=80,80,80",
-        "--generator",
-        "shapes",
-        "--seed",
-        "2",
-        "--n-of-shapes",
-        "70",
-        "--sample",
-        "100",
-        "-o",
-        path.to_str().unwrap(),
-        "--layout",
-        "z",
-        "--block-size",
-        "16",
-        "--object-size",
-        "7",
-    ]);
+    run_ok(&args_around(
+        "--dims=80,80,80 --generator shapes --seed 2 --n-of-shapes 70 --sample 100 -o",
+        &path,
+        "--layout z --block-size 16 --object-size 7",
+    ));
     assert_eq!(
         std::fs::metadata(&path).unwrap().len(),
         spec_len([80, 80, 80], Some(16))
@@ -574,19 +333,11 @@ fn interrupt_midway(signal: libc::c_int, name: &str) {
     let path = dir.path("big.vol");
     // Slow enough (16 octaves of noise, 216 MB) to be interrupted midway.
     let mut child = vol_gen()
-        .args([
-            "--dims",
-            "600,600,600",
-            "-g",
-            "noise",
-            "--octaves",
-            "16",
-            "--seed",
-            "1",
-            "-q",
-            "-o",
-            path.to_str().unwrap(),
-        ])
+        .args(args_around(
+            "--dims 600,600,600 -g noise --octaves 16 --seed 1 -q -o",
+            &path,
+            "",
+        ))
         .stderr(std::process::Stdio::piped())
         .spawn()
         .unwrap();

@@ -33,16 +33,25 @@ use crate::transfer::{TfLut, TransferFunction};
 use crate::volume::Volume;
 
 /// The rendering mode.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, serde::Serialize, serde::Deserialize)]
+#[serde(rename_all = "lowercase")]
+#[cfg_attr(feature = "clap", derive(clap::ValueEnum))]
 pub enum RenderMode {
     /// Direct volume rendering: front-to-back compositing.
     #[default]
+    #[cfg_attr(
+        feature = "clap",
+        value(help = "Direct volume rendering (front-to-back compositing)")
+    )]
     Dvr,
     /// Maximum intensity projection.
+    #[cfg_attr(feature = "clap", value(help = "Maximum intensity projection"))]
     Mip,
     /// Mean value along the ray ("x-ray").
+    #[cfg_attr(feature = "clap", value(help = "Mean value along each ray (x-ray)"))]
     Avg,
     /// First crossing of an iso value, shaded.
+    #[cfg_attr(feature = "clap", value(help = "Isosurface at --iso"))]
     Iso,
 }
 

@@ -11,16 +11,28 @@ use crate::scene::Scene;
 use crate::transfer::TransferFunction;
 
 /// The renderers of this crate, by name.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, Default)]
+#[derive(
+    Debug, Clone, Copy, PartialEq, Eq, Hash, Default, serde::Serialize, serde::Deserialize,
+)]
+#[serde(rename_all = "lowercase")]
+#[cfg_attr(feature = "clap", derive(clap::ValueEnum))]
 pub enum RendererKind {
     /// [`SerialRenderer`]: one thread, the reference.
+    #[cfg_attr(feature = "clap", value(help = "One thread, the reference"))]
     Serial,
     /// [`TiledRenderer`]: screen tiles on a thread pool.
+    #[cfg_attr(feature = "clap", value(help = "Screen tiles on a thread pool"))]
     Tiles,
     /// [`ObjectRenderer`]: bricks front to back into tiles. The default: the
     /// fastest measured on the benchmark frame and in other views (the
     /// README has the figures).
     #[default]
+    #[cfg_attr(
+        feature = "clap",
+        value(
+            help = "Object-parallel: bricks front to back into tiles (the default: the fastest measured)"
+        )
+    )]
     Object,
 }
 

@@ -10,7 +10,7 @@ use raycaster::prelude::*;
 
 use super::app::ViewerApp;
 use super::render_link::RenderRequest;
-use super::state::{PREVIEW_SCALE, RendererChoice, ResolutionChoice};
+use super::state::{PREVIEW_SCALE, ResolutionChoice};
 
 /// How long after the last wheel event the camera counts as still moving.
 const SCROLL_SETTLE: Duration = Duration::from_millis(250);
@@ -129,7 +129,7 @@ impl ViewerApp {
             camera: self.camera.camera(w, h),
             tf: s.tf.clone(),
             options: RenderOptions {
-                mode: s.mode.render_mode(),
+                mode: s.mode,
                 step: Some(step),
                 ert: s.ert,
                 ess: s.ess,
@@ -138,7 +138,7 @@ impl ViewerApp {
                 ..RenderOptions::default()
             },
             renderer: s.renderer,
-            threads: if s.renderer == RendererChoice::Serial {
+            threads: if s.renderer == RendererKind::Serial {
                 1
             } else {
                 s.threads
@@ -161,7 +161,7 @@ impl ViewerApp {
                     f.threads,
                     f.frame.width,
                     f.frame.height,
-                    crate::units::value(f.step),
+                    raycaster::units::value(f.step),
                     if f.preview { " (preview)" } else { "" },
                 ));
             } else {

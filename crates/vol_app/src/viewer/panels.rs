@@ -2,14 +2,16 @@
 //! options and camera, one collapsible section each.
 
 use egui::{CollapsingHeader, Ui};
+use raycaster::integrator::RenderMode;
+use raycaster::render::RendererKind;
 use raycaster::storage::StorageKind;
 use raycaster::transfer::PRESET_NAMES;
+use raycaster::units::{bytes, significant, value as format_value};
 
 use super::app::ViewerApp;
 use super::dialogs::Purpose;
 use super::loading::{Source, VolumeInfo};
-use super::state::{Mode, RendererChoice, ResolutionChoice, StepChoice, max_threads};
-use crate::units::{bytes, value as format_value};
+use super::state::{MODES, ResolutionChoice, StepChoice, max_threads, mode_label};
 
 impl ViewerApp {
     /// All sections of the left panel.
@@ -136,11 +138,11 @@ impl ViewerApp {
         let s = &mut self.settings;
         ui.horizontal(|ui| {
             ui.label("Mode:");
-            for m in Mode::ALL {
-                ui.radio_value(&mut s.mode, m, m.label());
+            for m in MODES {
+                ui.radio_value(&mut s.mode, m, mode_label(m));
             }
         });
-        if s.mode == Mode::Iso {
+        if s.mode == RenderMode::Iso {
             let (lo, hi) = self
                 .volume
                 .as_ref()
@@ -153,13 +155,13 @@ impl ViewerApp {
             egui::ComboBox::from_label("Renderer")
                 .selected_text(s.renderer.name())
                 .show_ui(ui, |ui| {
-                    for r in RendererChoice::ALL {
+                    for r in RendererKind::ALL {
                         ui.selectable_value(&mut s.renderer, r, r.name());
                     }
                 });
         });
         ui.add_enabled(
-            s.renderer != RendererChoice::Serial,
+            s.renderer != RendererKind::Serial,
             egui::Slider::new(&mut s.threads, 1..=max_threads()).text("Threads"),
         );
         ui.checkbox(&mut s.ert, "Early ray termination (ERT)");
@@ -245,10 +247,10 @@ fn info_grid(ui: &mut Ui, info: &VolumeInfo) {
         ),
         (
             "Spacing",
-            format!(
-                "{} × {} × {}",
-                info.spacing.x, info.spacing.y, info.spacing.z
-            ),
+            info.spacing
+                .to_array()
+                .map(|c| significant(c, 6))
+                .join(" × "),
         ),
         ("Type", info.sample_type.name().to_string()),
         (

@@ -23,8 +23,6 @@ use raycaster::render::{
     AnyRenderer, FrameRequest, FrontEvent, FrontOptions, Quality, RendererFront, RendererKind,
 };
 
-use super::state::RendererChoice;
-
 /// Everything one frame depends on.
 #[derive(Debug, Clone)]
 pub struct RenderRequest {
@@ -37,7 +35,7 @@ pub struct RenderRequest {
     /// Mode, step, ERT, ESS, shading.
     pub options: RenderOptions,
     /// Which renderer.
-    pub renderer: RendererChoice,
+    pub renderer: RendererKind,
     /// Worker threads in all for the parallel renderers.
     pub threads: usize,
     /// A preview rendered while the camera moves (coarse, smaller).
@@ -90,7 +88,7 @@ type Outcome = Result<RenderedFrame, RenderFailure>;
 struct Front {
     front: RendererFront,
     scene: Arc<Scene>,
-    renderer: RendererChoice,
+    renderer: RendererKind,
     threads: usize,
 }
 
@@ -254,12 +252,8 @@ impl RenderLink {
         if !reuse {
             // Dropping the old front cancels its frame and joins its thread.
             self.front = None;
-            let kind = match request.renderer {
-                RendererChoice::Serial => RendererKind::Serial,
-                RendererChoice::Tiles => RendererKind::Tiles,
-                RendererChoice::Object => RendererKind::Object,
-            };
-            let renderer = AnyRenderer::new(kind, request.threads).map_err(|e| e.to_string())?;
+            let renderer =
+                AnyRenderer::new(request.renderer, request.threads).map_err(|e| e.to_string())?;
             let wake = self.wake.clone();
             let front = RendererFront::spawn(
                 renderer,
@@ -307,7 +301,7 @@ mod tests {
             camera,
             tf: TransferFunction::preset("skull", SampleType::U8).unwrap(),
             options: RenderOptions::default(),
-            renderer: RendererChoice::Tiles,
+            renderer: RendererKind::Tiles,
             threads: 2,
             preview: false,
         }
@@ -380,7 +374,7 @@ mod tests {
     fn each_renderer_choice_renders_the_same_image() {
         let mut link = RenderLink::new(|| {});
         let mut images = Vec::new();
-        for choice in RendererChoice::ALL {
+        for choice in RendererKind::ALL {
             link.request(RenderRequest {
                 renderer: choice,
                 ..request(32)

@@ -8,6 +8,7 @@
 use std::path::PathBuf;
 
 use raycaster::integrator::RenderMode;
+use raycaster::render::RendererKind;
 use raycaster::transfer::TransferFunction;
 use raycaster::volume::Grid;
 use serde::{Deserialize, Serialize};
@@ -25,74 +26,21 @@ pub const COARSE_STEP: f32 = 0.9;
 /// adaptive mode.
 pub const PREVIEW_SCALE: f32 = 0.5;
 
-/// Rendering mode as persisted (SPEC §5).
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize, Default)]
-#[serde(rename_all = "lowercase")]
-pub enum Mode {
-    /// Direct volume rendering.
-    #[default]
-    Dvr,
-    /// Maximum intensity projection.
-    Mip,
-    /// Mean value along the ray (x-ray).
-    Avg,
-    /// Isosurface.
-    Iso,
-}
+/// The rendering modes, in menu order.
+pub const MODES: [RenderMode; 4] = [
+    RenderMode::Dvr,
+    RenderMode::Mip,
+    RenderMode::Avg,
+    RenderMode::Iso,
+];
 
-impl Mode {
-    /// Every mode, in menu order.
-    pub const ALL: [Mode; 4] = [Mode::Dvr, Mode::Mip, Mode::Avg, Mode::Iso];
-
-    /// The library's mode.
-    pub fn render_mode(self) -> RenderMode {
-        match self {
-            Mode::Dvr => RenderMode::Dvr,
-            Mode::Mip => RenderMode::Mip,
-            Mode::Avg => RenderMode::Avg,
-            Mode::Iso => RenderMode::Iso,
-        }
-    }
-
-    /// Short label for the UI.
-    pub fn label(self) -> &'static str {
-        match self {
-            Mode::Dvr => "DVR",
-            Mode::Mip => "MIP",
-            Mode::Avg => "X-ray",
-            Mode::Iso => "Iso",
-        }
-    }
-}
-
-/// Which renderer schedules the rays.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize, Default)]
-#[serde(rename_all = "lowercase")]
-pub enum RendererChoice {
-    /// One thread, the reference.
-    Serial,
-    /// Screen tiles on a thread pool.
-    #[default]
-    Tiles,
-    /// Object-parallel bricks.
-    Object,
-}
-
-impl RendererChoice {
-    /// Every renderer, in menu order.
-    pub const ALL: [RendererChoice; 3] = [
-        RendererChoice::Serial,
-        RendererChoice::Tiles,
-        RendererChoice::Object,
-    ];
-
-    /// The name used on command lines and in the status line.
-    pub fn name(self) -> &'static str {
-        match self {
-            RendererChoice::Serial => "serial",
-            RendererChoice::Tiles => "tiles",
-            RendererChoice::Object => "object",
-        }
+/// A mode's label in the UI.
+pub fn mode_label(mode: RenderMode) -> &'static str {
+    match mode {
+        RenderMode::Dvr => "DVR",
+        RenderMode::Mip => "MIP",
+        RenderMode::Avg => "X-ray",
+        RenderMode::Iso => "Iso",
     }
 }
 
@@ -145,13 +93,13 @@ pub struct Settings {
     /// The preset `tf` came from, while it is unmodified.
     pub tf_preset: Option<String>,
     /// Rendering mode.
-    pub mode: Mode,
-    /// Iso value (data units) for [`Mode::Iso`].
+    pub mode: RenderMode,
+    /// Iso value (data units) for [`RenderMode::Iso`].
     pub iso_value: f32,
     /// Phong shading.
     pub shading: bool,
     /// Renderer.
-    pub renderer: RendererChoice,
+    pub renderer: RendererKind,
     /// Render threads (clamped to the machine's cores).
     pub threads: usize,
     /// Early ray termination.
@@ -174,10 +122,12 @@ impl Default for Settings {
             last_dir: None,
             tf: preset_or_ramp(crate::demo::DEMO_TF),
             tf_preset: Some(crate::demo::DEMO_TF.to_string()),
-            mode: Mode::Dvr,
+            mode: RenderMode::Dvr,
             iso_value: 100.0,
             shading: true,
-            renderer: RendererChoice::default(),
+            // The viewer's default so far; the library's (and `vol_app
+            // render`'s) is the object renderer.
+            renderer: RendererKind::Tiles,
             threads: max_threads(),
             ert: true,
             ess: true,
@@ -247,7 +197,7 @@ mod tests {
     #[test]
     fn settings_round_trip_through_json() {
         let mut s = Settings {
-            mode: Mode::Iso,
+            mode: RenderMode::Iso,
             ert: false,
             step: StepChoice::Coarse,
             ..Settings::default()
@@ -262,7 +212,7 @@ mod tests {
     #[test]
     fn missing_and_bad_fields_fall_back_to_defaults() {
         let back: Settings = serde_json::from_str(r#"{"mode": "mip"}"#).unwrap();
-        assert_eq!(back.mode, Mode::Mip);
+        assert_eq!(back.mode, RenderMode::Mip);
         assert_eq!(back.tf, Settings::default().tf);
         let bad = Settings {
             threads: 10_000,

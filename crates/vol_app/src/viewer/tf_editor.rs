@@ -334,14 +334,14 @@ fn paint(
     painter.text(
         Pos2::new(rect.left() + 4.0, top),
         egui::Align2::LEFT_TOP,
-        crate::units::value(axes.lo),
+        raycaster::units::value(axes.lo),
         font.clone(),
         weak,
     );
     painter.text(
         Pos2::new(rect.right() - 4.0, top),
         egui::Align2::RIGHT_TOP,
-        crate::units::value(axes.hi),
+        raycaster::units::value(axes.hi),
         font,
         weak,
     );

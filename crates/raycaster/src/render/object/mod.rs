@@ -141,6 +141,7 @@ pub struct ObjectConfig {
 /// Which task a render thread takes next (when it composites its own tasks;
 /// with compositing threads every task goes back through the queue).
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+#[cfg_attr(feature = "clap", derive(clap::ValueEnum))]
 pub enum TaskOrder {
     /// The same tile's next brick, straight away: a tile is integrated
     /// brick by brick on one thread while the others work on other tiles,
@@ -148,9 +149,17 @@ pub enum TaskOrder {
     /// The default: faster than [`TaskOrder::Queue`] on the benchmark frame
     /// with one and with two threads.
     #[default]
+    #[cfg_attr(
+        feature = "clap",
+        value(help = "A render thread keeps its tile until the tile is done")
+    )]
     TileFirst,
     /// Back to the shared queue, behind every other tile's task (the
     /// thesis's scheme): all tiles advance in turn.
+    #[cfg_attr(
+        feature = "clap",
+        value(help = "Every task goes back to the shared queue (the seed thesis's scheme)")
+    )]
     Queue,
 }
 
