@@ -37,13 +37,13 @@ fn parallel(c: &mut Criterion) {
         group.sample_size(10);
         let mut renderers: Vec<(String, AnyRenderer)> = vec![(
             "serial".into(),
-            AnyRenderer::new(RendererKind::Serial, 1).expect("serial"),
+            RendererKind::Serial.renderer(1).expect("serial"),
         )];
         for kind in [RendererKind::Tiles, RendererKind::Object] {
             for threads in [1, 2] {
                 renderers.push((
                     format!("{} {threads}t", kind.name()),
-                    AnyRenderer::new(kind, threads).expect("renderer"),
+                    kind.renderer(threads).expect("renderer"),
                 ));
             }
         }

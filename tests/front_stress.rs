@@ -128,7 +128,7 @@ fn configs(scenes: &[Arc<Scene>]) -> Vec<Config> {
 
 fn make_renderer(kind: Kind) -> AnyOrFlaky {
     match kind {
-        Kind::Any(k) => AnyOrFlaky::Any(AnyRenderer::new(k, 2).expect("renderer")),
+        Kind::Any(k) => AnyOrFlaky::Any(k.renderer(2).expect("renderer")),
         Kind::Flaky => AnyOrFlaky::Flaky(Flaky(SerialRenderer::new())),
     }
 }
@@ -171,7 +171,7 @@ fn spawn(kind: Kind, scene: Arc<Scene>, wakes: Arc<AtomicUsize>) -> RendererFron
     };
     match make_renderer(kind) {
         AnyOrFlaky::Any(r) => RendererFront::spawn(r, scene, options),
-        AnyOrFlaky::Flaky(r) => RendererFront::spawn(r, scene, options),
+        AnyOrFlaky::Flaky(r) => RendererFront::spawn(Box::new(r), scene, options),
     }
     .expect("spawn")
 }

@@ -105,7 +105,7 @@ fn parallel_renderers() -> Vec<(String, Box<dyn Renderer>)> {
         ),
         (
             "object default".into(),
-            Box::new(AnyRenderer::new(RendererKind::Object, 2).expect("object")),
+            RendererKind::Object.renderer(2).expect("object"),
         ),
     ];
     for (r, c, tile, brick, order) in [
@@ -345,7 +345,7 @@ fn cancelled_frames_are_not_delivered() {
     let tf = TransferFunction::preset("skull", SampleType::U8).expect("preset");
     let flag = AtomicBool::new(true);
     for kind in RendererKind::ALL {
-        let mut r = AnyRenderer::new(kind, 2).expect("renderer");
+        let mut r = kind.renderer(2).expect("renderer");
         // The same renderer, first cancelled, then not.
         for (cancel, delivers, problem) in [
             (Cancel::flag(&flag), false, "delivered a cancelled frame"),
@@ -375,7 +375,7 @@ fn bad_configurations_are_errors() {
     let camera = Camera::look_at(Vec3::splat(3.0), Vec3::splat(3.0), 8, 8);
     let tf = TransferFunction::preset("skull", SampleType::U8).expect("preset");
     for kind in RendererKind::ALL {
-        let mut r = AnyRenderer::new(kind, 2).expect("renderer");
+        let mut r = kind.renderer(2).expect("renderer");
         assert!(
             r.render(&pair.scene, &camera, &tf, &RenderOptions::default())
                 .is_err(),
@@ -416,7 +416,7 @@ fn cancellation_stops_a_frame_in_progress() {
         ..RenderOptions::default()
     };
     for kind in RendererKind::ALL {
-        let mut r = AnyRenderer::new(kind, 2).expect("renderer");
+        let mut r = kind.renderer(2).expect("renderer");
         let start = Instant::now();
         r.render(scene, &camera, &tf, &options).expect("render");
         let full = start.elapsed();

@@ -4,7 +4,9 @@
 use glam::Vec3;
 use raycaster::accel::SkipGrid;
 use raycaster::geometry::Ray;
-use raycaster::integrator::{DvrState, FrameContext, Integrator, IsoState, MipState, RaySegment};
+use raycaster::integrator::{
+    DvrState, FrameContext, Integrator, IsoState, MipState, RaySegment, Span,
+};
 use raycaster::prelude::*;
 use raycaster::transfer::TfLut;
 
@@ -104,7 +106,7 @@ impl<'a> RayLab<'a> {
             type Out = (Option<Vec3>, u64);
             fn run<V: Volume>(self, ctx: &FrameContext<'_, V>, seg: &RaySegment) -> Self::Out {
                 let mut st = IsoState::default();
-                let n = st.integrate(ctx, seg, 0, seg.count);
+                let n = st.integrate(Span::whole(ctx, seg));
                 (st.hit.map(|(p, _)| ctx.volume.grid().voxel_to_world(p)), n)
             }
         }
@@ -117,7 +119,7 @@ impl<'a> RayLab<'a> {
             type Out = (DvrState, u64);
             fn run<V: Volume>(self, ctx: &FrameContext<'_, V>, seg: &RaySegment) -> Self::Out {
                 let mut st = DvrState::default();
-                let n = st.integrate(ctx, seg, 0, seg.count);
+                let n = st.integrate(Span::whole(ctx, seg));
                 (st, n)
             }
         }
@@ -131,7 +133,7 @@ impl<'a> RayLab<'a> {
             const EVERY_CELL: bool = true;
             fn run<V: Volume>(self, ctx: &FrameContext<'_, V>, seg: &RaySegment) -> f32 {
                 let mut st = MipState::default();
-                st.integrate(ctx, seg, 0, seg.count);
+                st.integrate(Span::whole(ctx, seg));
                 st.max
             }
         }

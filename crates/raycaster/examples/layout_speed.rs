@@ -51,7 +51,7 @@ fn run(path: &str, preset: &str, repeat: usize) -> Result<(), raycaster::Error> 
             camera.target = c;
             camera.up = if view == "y" { Vec3::Z } else { Vec3::Y };
             for kind in [RendererKind::Serial, RendererKind::Object] {
-                let mut renderer = AnyRenderer::new(kind, 0)?;
+                let mut renderer = kind.renderer(0)?;
                 let opts = RenderOptions::default();
                 renderer.render(&scene, &camera, &tf, &opts)?;
                 let mut ms: Vec<f64> = (0..repeat)

@@ -121,7 +121,14 @@ pub fn run(args: &RenderArgs) -> Result<(), Error> {
             })?)
         }
     };
-    let frames = render_repeated(&mut renderer, &scene, &camera, &tf, &options, args.repeat)?;
+    let frames = render_repeated(
+        renderer.as_mut(),
+        &scene,
+        &camera,
+        &tf,
+        &options,
+        args.repeat,
+    )?;
     let (name, threads) = (renderer.name(), renderer.threads());
     let (last, times) = frames;
 
@@ -168,8 +175,8 @@ pub fn run(args: &RenderArgs) -> Result<(), Error> {
 }
 
 /// One warm-up frame when repeating, then `repeat` timed frames.
-fn render_repeated<R: Renderer>(
-    r: &mut R,
+fn render_repeated(
+    r: &mut dyn Renderer,
     scene: &Scene,
     camera: &Camera,
     tf: &TransferFunction,

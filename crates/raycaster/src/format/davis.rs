@@ -97,10 +97,6 @@ pub fn header_plausible(head: &[u8]) -> bool {
 pub struct DavisReader;
 
 impl super::Reader for DavisReader {
-    fn format(&self) -> FileFormat {
-        FileFormat::DavisVol
-    }
-
     fn sniff(&self, probe: &super::Probe) -> Option<super::Claim> {
         if probe.is_dir || !matches!(probe.extension(), "vol" | "") {
             return None;

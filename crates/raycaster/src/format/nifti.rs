@@ -210,10 +210,6 @@ fn is_compressed(path: &Path) -> Result<bool> {
 pub struct NiftiReader;
 
 impl super::Reader for NiftiReader {
-    fn format(&self) -> FileFormat {
-        FileFormat::Nifti
-    }
-
     fn sniff(&self, probe: &super::Probe) -> Option<super::Claim> {
         if probe.is_dir {
             None

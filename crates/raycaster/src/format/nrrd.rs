@@ -343,10 +343,6 @@ fn skip_lines(path: &Path, from: u64, n: u64) -> Result<u64> {
 pub struct NrrdReader;
 
 impl super::Reader for NrrdReader {
-    fn format(&self) -> FileFormat {
-        FileFormat::Nrrd
-    }
-
     fn sniff(&self, probe: &super::Probe) -> Option<super::Claim> {
         if probe.is_dir {
             None

@@ -83,10 +83,6 @@ impl RawOptions {
 pub struct RawReader;
 
 impl super::Reader for RawReader {
-    fn format(&self) -> FileFormat {
-        FileFormat::Raw
-    }
-
     /// Never claims a file: there is no header to recognise.
     fn sniff(&self, _probe: &super::Probe) -> Option<super::Claim> {
         None

@@ -57,11 +57,9 @@ pub enum Claim {
     Content,
 }
 
-/// A reader of one file format.
+/// A reader of one file format (paired with its [`FileFormat`] in
+/// [`READERS`]).
 pub trait Reader: Sync {
-    /// The format this reader reads.
-    fn format(&self) -> FileFormat;
-
     /// How strongly this reader claims the file `probe` shows; `None` when
     /// it is not this reader's.
     fn sniff(&self, probe: &Probe) -> Option<Claim>;
@@ -75,12 +73,12 @@ pub trait Reader: Sync {
 /// claims: NRRD's and NIfTI's magic numbers are checked before DICOM's
 /// preamble, and the `.vol` format of this project before the UC Davis one
 /// that shares its extension.
-pub static READERS: &[&dyn Reader] = &[
-    &nrrd::NrrdReader,
-    &nifti::NiftiReader,
-    &dicom::DicomReader,
-    &vol::VolReader,
-    &davis::DavisReader,
+pub static READERS: &[(FileFormat, &dyn Reader)] = &[
+    (FileFormat::Nrrd, &nrrd::NrrdReader),
+    (FileFormat::Nifti, &nifti::NiftiReader),
+    (FileFormat::Dicom, &dicom::DicomReader),
+    (FileFormat::Vol, &vol::VolReader),
+    (FileFormat::DavisVol, &davis::DavisReader),
 ];
 
 /// The reader for `path`: the raw reader when `options.raw` describes the
@@ -89,17 +87,17 @@ pub fn reader_for(path: &Path, options: &OpenOptions) -> Result<&'static dyn Rea
     if options.raw.is_some() {
         return Ok(&raw::RawReader);
     }
-    detect_reader(path)
+    detect_reader(path).map(|(_, reader)| reader)
 }
 
 /// Guesses the format of `path` from its name and first bytes.
 pub fn detect(path: &Path) -> Result<FileFormat> {
-    detect_reader(path).map(|r| r.format())
+    detect_reader(path).map(|(format, _)| format)
 }
 
 /// The reader whose claim on `path` is strongest (see the module
 /// documentation).
-fn detect_reader(path: &Path) -> Result<&'static dyn Reader> {
+fn detect_reader(path: &Path) -> Result<(FileFormat, &'static dyn Reader)> {
     let meta = std::fs::metadata(path).map_err(|e| Error::io(path, e))?;
     let is_dir = meta.is_dir();
     let head = if is_dir {
@@ -123,16 +121,16 @@ fn detect_reader(path: &Path) -> Result<&'static dyn Reader> {
 
 /// The reader with the strongest claim on `probe`, the earliest in
 /// [`READERS`] among equals.
-fn strongest(probe: &Probe) -> Option<&'static dyn Reader> {
-    let mut best: Option<(Claim, &'static dyn Reader)> = None;
-    for &reader in READERS {
+fn strongest(probe: &Probe) -> Option<(FileFormat, &'static dyn Reader)> {
+    let mut best: Option<(Claim, (FileFormat, &'static dyn Reader))> = None;
+    for &(format, reader) in READERS {
         if let Some(claim) = reader.sniff(probe)
             && best.is_none_or(|(strongest, _)| claim > strongest)
         {
-            best = Some((claim, reader));
+            best = Some((claim, (format, reader)));
         }
     }
-    best.map(|(_, reader)| reader)
+    best.map(|(_, found)| found)
 }
 
 /// The error for a file no reader claims: headerless extensions get the
@@ -170,7 +168,7 @@ mod tests {
             len,
             is_dir,
         };
-        strongest(&probe).map(|r| r.format())
+        strongest(&probe).map(|(format, _)| format)
     }
 
     fn nifti_head() -> Vec<u8> {

@@ -233,10 +233,6 @@ pub fn header_matches(head: &[u8], file_len: u64) -> bool {
 pub struct VolReader;
 
 impl super::Reader for VolReader {
-    fn format(&self) -> super::FileFormat {
-        super::FileFormat::Vol
-    }
-
     fn sniff(&self, probe: &super::Probe) -> Option<super::Claim> {
         if probe.is_dir || !matches!(probe.extension(), "vol" | "") {
             return None;

@@ -2,7 +2,7 @@
 
 use glam::{Vec3, Vec4};
 
-use super::{FrameContext, Integrator, Occupancy, RaySegment};
+use super::{FrameContext, Integrator, Span};
 use crate::volume::Volume;
 
 /// Running sum and count.
@@ -15,24 +15,13 @@ pub struct AvgState {
 }
 
 impl Integrator for AvgState {
-    fn occupancy(_iso_value: f32) -> Occupancy {
-        // Every sample counts towards the mean: nothing is skipped.
-        Occupancy::Every
-    }
-
     /// Adds samples `k0..k1`. Every sample counts, so nothing is skipped.
     #[inline]
-    fn integrate<V: Volume>(
-        &mut self,
-        ctx: &FrameContext<'_, V>,
-        seg: &RaySegment,
-        k0: u32,
-        k1: u32,
-    ) -> u64 {
-        let k1 = k1.min(seg.count);
+    fn integrate<V: Volume>(&mut self, span: Span<'_, V>) -> u64 {
+        let (k0, k1) = (span.start, span.end.min(span.seg.count));
         let mut sum = 0.0f32;
         for k in k0..k1 {
-            sum += ctx.volume.sample(seg.pos(k));
+            sum += span.ctx.volume.sample(span.seg.pos(k));
         }
         let n = k1.saturating_sub(k0) as u64;
         self.sum += sum as f64;

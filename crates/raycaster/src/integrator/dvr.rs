@@ -2,7 +2,7 @@
 
 use glam::{UVec3, Vec3, Vec4};
 
-use super::{FrameContext, Integrator, Occupancy, RaySegment};
+use super::{FrameContext, Integrator, Occupancy, RaySegment, Span};
 use crate::accel::RunKind;
 use crate::volume::{Volume, interpolate, stencil_gradient};
 
@@ -20,22 +20,16 @@ pub struct DvrState {
 impl Integrator for DvrState {
     const CULLS_EMPTY_BRICKS: bool = true;
 
-    fn occupancy(_iso_value: f32) -> Occupancy {
-        Occupancy::Visible
-    }
+    const OCCUPANCY: Occupancy = Occupancy::Visible;
 
-    /// Composites samples `k0..k1` (clamped to the ray); returns how many were taken.
+    /// Composites the span's samples front to back; uniform macrocells in
+    /// closed form.
     #[inline]
-    fn integrate<V: Volume>(
-        &mut self,
-        ctx: &FrameContext<'_, V>,
-        seg: &RaySegment,
-        k0: u32,
-        k1: u32,
-    ) -> u64 {
+    fn integrate<V: Volume>(&mut self, span: Span<'_, V>) -> u64 {
+        let (ctx, seg) = (span.ctx, span.seg);
         let mut taken = 0u64;
         let threshold = ctx.ert.unwrap_or(f32::INFINITY);
-        for run in ctx.runs(seg, k0, k1) {
+        for run in span.runs() {
             if self.terminated {
                 break;
             }

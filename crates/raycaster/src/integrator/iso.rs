@@ -2,7 +2,7 @@
 
 use glam::{Vec3, Vec4};
 
-use super::{FrameContext, Integrator, Occupancy, RaySegment};
+use super::{FrameContext, Integrator, Occupancy, RaySegment, Span};
 use crate::accel::RunKind;
 use crate::volume::Volume;
 
@@ -18,9 +18,7 @@ pub struct IsoState {
 impl Integrator for IsoState {
     const SPLITS_RAYS: bool = false;
 
-    fn occupancy(iso_value: f32) -> Occupancy {
-        Occupancy::Straddles(iso_value)
-    }
+    const OCCUPANCY: Occupancy = Occupancy::IsoValue;
 
     /// Searches samples `k0..k1` for a sign change of `value − iso`.
     ///
@@ -29,16 +27,11 @@ impl Integrator for IsoState {
     /// taken, so every pair of consecutive samples that could bracket a
     /// crossing is still compared.
     #[inline]
-    fn integrate<V: Volume>(
-        &mut self,
-        ctx: &FrameContext<'_, V>,
-        seg: &RaySegment,
-        k0: u32,
-        k1: u32,
-    ) -> u64 {
-        let k1 = k1.min(seg.count);
+    fn integrate<V: Volume>(&mut self, span: Span<'_, V>) -> u64 {
+        let (ctx, seg) = (span.ctx, span.seg);
+        let k1 = span.end.min(seg.count);
         let mut taken = 0u64;
-        for run in ctx.runs(seg, k0, k1) {
+        for run in span.runs() {
             if self.hit.is_some() {
                 break;
             }

@@ -2,7 +2,7 @@
 
 use glam::Vec4;
 
-use super::{FrameContext, Integrator, Occupancy, RaySegment};
+use super::{FrameContext, Integrator, Span};
 use crate::accel::RunKind;
 use crate::volume::Volume;
 
@@ -22,23 +22,14 @@ impl Default for MipState {
 }
 
 impl Integrator for MipState {
-    fn occupancy(_iso_value: f32) -> Occupancy {
-        // Every cell is visited; the running maximum decides.
-        Occupancy::Every
-    }
-
-    /// Folds samples `k0..k1` into the maximum. With ESS, macrocells whose
-    /// largest value cannot raise the maximum are jumped over.
+    /// Folds the span's samples into the maximum. With ESS, macrocells
+    /// whose largest value cannot raise the maximum are jumped over (every
+    /// cell is occupied for MIP: the running maximum decides).
     #[inline]
-    fn integrate<V: Volume>(
-        &mut self,
-        ctx: &FrameContext<'_, V>,
-        seg: &RaySegment,
-        k0: u32,
-        k1: u32,
-    ) -> u64 {
+    fn integrate<V: Volume>(&mut self, span: Span<'_, V>) -> u64 {
+        let (ctx, seg) = (span.ctx, span.seg);
         let mut taken = 0u64;
-        for run in ctx.runs(seg, k0, k1) {
+        for run in span.runs() {
             if let RunKind::Cell(i) = run.kind
                 && ctx.macrocells.ranges[i].1 <= self.max
             {

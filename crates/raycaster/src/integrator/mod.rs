@@ -6,7 +6,7 @@
 //! range of indices (so a renderer can integrate a ray piece by piece, brick
 //! by brick) and finally resolves to a premultiplied colour. Empty-space
 //! skipping reaches an integrator as runs of sample indices
-//! ([`FrameContext::runs`]): empty runs it may jump over, occupied ones with
+//! ([`Span::runs`]): empty runs it may jump over, occupied ones with
 //! their macrocell.
 //!
 //! Adding a mode: a file with a state type implementing [`Integrator`], a
@@ -86,26 +86,73 @@ pub trait IntegratorVisitor {
     fn visit<I: Integrator>(self) -> Self::Output;
 }
 
-/// Which macrocells a mode may skip, given the frame's TF table and options.
-#[derive(Debug, Clone, Copy, PartialEq)]
+/// Which macrocells a mode may skip.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub enum Occupancy {
     /// A cell is occupied when the TF gives any of its values opacity.
     Visible,
-    /// A cell is occupied when its value range holds this value.
-    Straddles(f32),
+    /// A cell is occupied when its value range holds the iso value.
+    IsoValue,
     /// Every cell is occupied: the integrator decides per cell from the
     /// macrocell ranges (e.g. MIP skips cells that cannot raise its maximum).
     Every,
 }
 
 impl Occupancy {
-    /// The skip grid of this occupancy over `cells`.
-    pub fn skip_grid(self, cells: &MacrocellGrid, lut: &TfLut) -> SkipGrid {
+    /// The skip grid of this occupancy over `cells`, for the frame's TF
+    /// table and iso value.
+    pub fn skip_grid(self, cells: &MacrocellGrid, lut: &TfLut, iso: f32) -> SkipGrid {
         match self {
             Occupancy::Visible => SkipGrid::build(cells, |lo, hi| lut.any_visible(lo, hi)),
-            Occupancy::Straddles(v) => SkipGrid::build(cells, |lo, hi| lo <= v && v <= hi),
+            Occupancy::IsoValue => SkipGrid::build(cells, |lo, hi| lo <= iso && iso <= hi),
             Occupancy::Every => SkipGrid::all_occupied(cells),
         }
+    }
+}
+
+/// Samples `start..end` of one ray, with the frame they belong to: what an
+/// [`Integrator`] takes in one step.
+#[derive(Clone, Copy)]
+pub struct Span<'a, V: Volume> {
+    /// The frame.
+    pub ctx: &'a FrameContext<'a, V>,
+    /// The ray.
+    pub seg: &'a RaySegment,
+    /// First sample index.
+    pub start: u32,
+    /// One past the last sample index (clamped to the ray by the
+    /// integrators).
+    pub end: u32,
+}
+
+impl<'a, V: Volume> Span<'a, V> {
+    /// Samples `start..end` of `seg`.
+    #[inline(always)]
+    pub fn new(ctx: &'a FrameContext<'a, V>, seg: &'a RaySegment, start: u32, end: u32) -> Self {
+        Span {
+            ctx,
+            seg,
+            start,
+            end,
+        }
+    }
+
+    /// The whole ray.
+    #[inline(always)]
+    pub fn whole(ctx: &'a FrameContext<'a, V>, seg: &'a RaySegment) -> Self {
+        Self::new(ctx, seg, 0, seg.count)
+    }
+
+    /// The span's samples in runs, empty or occupied by the frame's skip
+    /// grid; one run of unknown occupancy when ESS is off.
+    #[inline(always)]
+    pub fn runs(&self) -> SkipRuns<'a> {
+        SkipRuns::new(
+            self.ctx.ess.then_some(self.ctx.skip),
+            self.seg,
+            self.start,
+            self.end,
+        )
     }
 }
 
@@ -125,19 +172,11 @@ pub trait Integrator: Copy + Default + Send + Sync + std::fmt::Debug + 'static {
     /// integrates whole.
     const SPLITS_RAYS: bool = true;
 
-    /// Which macrocells this mode may skip (`iso_value` is the frame's iso
-    /// value, for modes that look for one).
-    fn occupancy(iso_value: f32) -> Occupancy;
+    /// Which macrocells this mode may skip.
+    const OCCUPANCY: Occupancy = Occupancy::Every;
 
-    /// Integrates samples `k0..k1` of `seg` (clamped to the ray); returns
-    /// the number of samples taken.
-    fn integrate<V: Volume>(
-        &mut self,
-        ctx: &FrameContext<'_, V>,
-        seg: &RaySegment,
-        k0: u32,
-        k1: u32,
-    ) -> u64;
+    /// Integrates the samples of `span`; returns how many were taken.
+    fn integrate<V: Volume>(&mut self, span: Span<'_, V>) -> u64;
 
     /// True when nothing more can change this ray (ERT, a hit).
     fn is_done(&self) -> bool {
@@ -171,13 +210,4 @@ pub struct FrameContext<'a, V: Volume> {
     pub iso_value: f32,
     /// Divisor of [`RenderMode::Avg`].
     pub avg_norm: f32,
-}
-
-impl<V: Volume> FrameContext<'_, V> {
-    /// The runs of samples `k0..k1` of `seg`, empty or occupied by the
-    /// frame's skip grid; one run of unknown occupancy when ESS is off.
-    #[inline(always)]
-    pub fn runs<'s>(&'s self, seg: &'s RaySegment, k0: u32, k1: u32) -> SkipRuns<'s> {
-        SkipRuns::new(self.ess.then_some(self.skip), seg, k0, k1)
-    }
 }

@@ -1,14 +1,9 @@
-//! [`AnyRenderer`]: a renderer of this crate chosen at run time by its
-//! [`RendererKind`].
+//! [`RendererKind`]: the renderers of this crate by name, and the
+//! [`AnyRenderer`] a kind builds at run time.
 
 use super::object::resolve_threads;
-use super::{
-    Cancel, Frame, ObjectRenderer, RenderOptions, Renderer, SerialRenderer, TiledRenderer,
-};
-use crate::camera::Camera;
+use super::{ObjectRenderer, Renderer, SerialRenderer, TiledRenderer};
 use crate::error::Result;
-use crate::scene::Scene;
-use crate::transfer::TransferFunction;
 
 /// The renderers of this crate, by name.
 #[derive(
@@ -54,60 +49,20 @@ impl RendererKind {
     }
 }
 
-/// Any renderer of this crate, chosen at run time.
-pub struct AnyRenderer {
-    kind: RendererKind,
-    renderer: Box<dyn Renderer>,
-}
+/// A renderer chosen at run time (any [`Renderer`], this crate's or not).
+pub type AnyRenderer = Box<dyn Renderer>;
 
-impl std::fmt::Debug for AnyRenderer {
-    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
-        f.debug_struct("AnyRenderer")
-            .field("kind", &self.kind)
-            .field("threads", &self.renderer.threads())
-            .finish()
-    }
-}
-
-impl AnyRenderer {
-    /// A renderer of `kind` with `threads` threads in all (0 = one per
+impl RendererKind {
+    /// A renderer of this kind with `threads` threads in all (0 = one per
     /// core; the serial renderer always uses one) and default options.
-    pub fn new(kind: RendererKind, threads: usize) -> Result<Self> {
-        let renderer: Box<dyn Renderer> = match kind {
+    pub fn renderer(self, threads: usize) -> Result<AnyRenderer> {
+        Ok(match self {
             RendererKind::Serial => Box::new(SerialRenderer::new()),
             RendererKind::Tiles => Box::new(TiledRenderer::new(
                 resolve_threads(threads),
                 TiledRenderer::DEFAULT_TILE,
             )?),
             RendererKind::Object => Box::new(ObjectRenderer::new(threads)?),
-        };
-        Ok(AnyRenderer { kind, renderer })
-    }
-
-    /// Which renderer this is.
-    pub fn kind(&self) -> RendererKind {
-        self.kind
-    }
-}
-
-impl Renderer for AnyRenderer {
-    fn name(&self) -> &'static str {
-        self.renderer.name()
-    }
-
-    fn threads(&self) -> usize {
-        self.renderer.threads()
-    }
-
-    fn render_cancellable(
-        &mut self,
-        scene: &Scene,
-        camera: &Camera,
-        tf: &TransferFunction,
-        options: &RenderOptions,
-        cancel: Cancel<'_>,
-    ) -> Result<Option<Frame>> {
-        self.renderer
-            .render_cancellable(scene, camera, tf, options, cancel)
+        })
     }
 }

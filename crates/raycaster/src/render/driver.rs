@@ -11,10 +11,10 @@ use std::time::Instant;
 
 use super::film::Film;
 use super::plan::{FramePlan, PlanCache, RenderOptions};
-use super::{Cancel, Frame, FrameStats};
+use super::{Cancel, Frame, FrameStats, Renderer};
 use crate::camera::{Camera, PixelRect};
 use crate::error::Result;
-use crate::integrator::{FrameContext, Integrator, IntegratorVisitor, RaySegment};
+use crate::integrator::{FrameContext, Integrator, IntegratorVisitor, RaySegment, Span};
 use crate::scene::Scene;
 use crate::transfer::TransferFunction;
 use crate::volume::{Volume, VolumeVisitor};
@@ -66,17 +66,82 @@ pub trait Schedule: Send {
     ) -> Option<u64>;
 }
 
-/// Renders one frame with `schedule` (see the module docs); `Ok(None)` when
-/// cancelled.
-pub(crate) fn render_frame<S: Schedule>(
+/// A renderer made of a schedule (which rays are integrated on which
+/// threads) and the frame driver every renderer shares: preparation, the
+/// dispatch to the volume and integrator types, timing, the film.
+#[derive(Debug, Default)]
+pub struct FrameRenderer<S> {
+    schedule: S,
+    cache: PlanCache,
+}
+
+impl<S> FrameRenderer<S> {
+    pub(crate) fn with_schedule(schedule: S) -> Self {
+        FrameRenderer {
+            schedule,
+            cache: PlanCache::default(),
+        }
+    }
+
+    pub(crate) fn schedule(&self) -> &S {
+        &self.schedule
+    }
+}
+
+impl<S: Schedule> Renderer for FrameRenderer<S> {
+    fn name(&self) -> &'static str {
+        S::NAME
+    }
+
+    fn threads(&self) -> usize {
+        self.schedule.threads()
+    }
+
+    /// Renders one frame with the schedule (see the module docs); `Ok(None)`
+    /// when cancelled.
+    fn render_cancellable(
+        &mut self,
+        scene: &Scene,
+        camera: &Camera,
+        tf: &TransferFunction,
+        options: &RenderOptions,
+        cancel: Cancel<'_>,
+    ) -> Result<Option<Frame>> {
+        render_frame(
+            &mut self.schedule,
+            &mut self.cache,
+            FrameInputs {
+                scene,
+                camera,
+                tf,
+                options,
+            },
+            cancel,
+        )
+    }
+}
+
+/// What a frame is rendered from.
+struct FrameInputs<'a> {
+    scene: &'a Scene,
+    camera: &'a Camera,
+    tf: &'a TransferFunction,
+    options: &'a RenderOptions,
+}
+
+/// Renders one frame with `schedule`; `Ok(None)` when cancelled.
+fn render_frame<S: Schedule>(
     schedule: &mut S,
     cache: &mut PlanCache,
-    scene: &Scene,
-    camera: &Camera,
-    tf: &TransferFunction,
-    options: &RenderOptions,
+    inputs: FrameInputs<'_>,
     cancel: Cancel<'_>,
 ) -> Result<Option<Frame>> {
+    let FrameInputs {
+        scene,
+        camera,
+        tf,
+        options,
+    } = inputs;
     let start = Instant::now();
     let plan = FramePlan::new(cache, scene, camera, tf, options)?;
     let mut film = Film::new(plan.width, plan.height, options.background);
@@ -165,7 +230,7 @@ pub(crate) fn render_tile<V: Volume, I: Integrator>(
                 None => film.background_rgb(),
                 Some(seg) => {
                     let mut ray = I::default();
-                    samples += ray.integrate(&job.ctx, &seg, 0, seg.count);
+                    samples += ray.integrate(Span::whole(&job.ctx, &seg));
                     film.composite(ray.resolve(&job.ctx))
                 }
             };

@@ -36,7 +36,7 @@
 //!     if (v.as_vec3() - Vec3::splat(15.5)).length() < 10.0 { 200u8 } else { 0 }
 //! });
 //! let scene = Arc::new(Scene::new(volume));
-//! let renderer = AnyRenderer::new(RendererKind::Object, 2)?;
+//! let renderer = RendererKind::Object.renderer(2)?;
 //! let front = RendererFront::spawn(renderer, scene.clone(), FrontOptions::default())?;
 //!
 //! let tf = Arc::new(TransferFunction::preset("skull", SampleType::U8).unwrap());
@@ -71,7 +71,7 @@ use std::thread::JoinHandle;
 use crossbeam_channel::{Receiver, Sender, TrySendError};
 use parking_lot::Mutex;
 
-use super::{Cancel, Frame, FrameStats, RenderOptions, Renderer};
+use super::{AnyRenderer, Cancel, Frame, FrameStats, RenderOptions};
 use crate::camera::Camera;
 use crate::error::{Error, Result};
 use crate::scene::Scene;
@@ -224,11 +224,7 @@ impl std::fmt::Debug for RendererFront {
 
 impl RendererFront {
     /// Starts `renderer` on a new thread, rendering `scene`.
-    pub fn spawn<R: Renderer + 'static>(
-        renderer: R,
-        scene: Arc<Scene>,
-        options: FrontOptions,
-    ) -> Result<Self> {
+    pub fn spawn(renderer: AnyRenderer, scene: Arc<Scene>, options: FrontOptions) -> Result<Self> {
         let (commands, command_rx) = crossbeam_channel::unbounded();
         let (event_tx, events) = crossbeam_channel::bounded(EVENT_BACKLOG);
         let generation = Arc::new(AtomicU64::new(0));
@@ -339,8 +335,8 @@ impl Drop for RendererFront {
 }
 
 /// The render thread's state.
-struct Worker<R> {
-    renderer: R,
+struct Worker {
+    renderer: AnyRenderer,
     scene: Arc<Scene>,
     commands: Receiver<Command>,
     events: Sender<FrontEvent>,
@@ -349,7 +345,7 @@ struct Worker<R> {
     wake: Option<WakeFn>,
 }
 
-impl<R: Renderer> Worker<R> {
+impl Worker {
     fn run(mut self) {
         // Ends on `Shutdown` or when the front is gone.
         while let Ok(first) = self.commands.recv() {

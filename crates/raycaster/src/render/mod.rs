@@ -33,6 +33,7 @@ mod serial;
 mod tiled;
 
 pub use any::{AnyRenderer, RendererKind};
+pub use driver::FrameRenderer;
 pub use frame::{Frame, FrameStats};
 pub use front::{FrameRequest, FrontEvent, FrontOptions, Quality, RendererFront, WakeFn};
 pub use object::{ObjectConfig, TaskOrder};
@@ -45,57 +46,6 @@ pub type TiledRenderer = FrameRenderer<tiled::TilePool>;
 /// Bricks integrated front to back into tiles by render threads fed from
 /// one task queue (see [`object`]).
 pub type ObjectRenderer = FrameRenderer<object::Bricks>;
-
-/// A renderer made of a schedule (which rays are integrated on which
-/// threads) and the frame driver every renderer shares (preparation,
-/// dispatch to the volume and integrator types, timing, the film).
-#[derive(Debug, Default)]
-pub struct FrameRenderer<S> {
-    schedule: S,
-    cache: PlanCache,
-}
-
-impl<S> FrameRenderer<S> {
-    fn with_schedule(schedule: S) -> Self {
-        FrameRenderer {
-            schedule,
-            cache: PlanCache::default(),
-        }
-    }
-
-    fn schedule(&self) -> &S {
-        &self.schedule
-    }
-}
-
-impl<S: driver::Schedule> Renderer for FrameRenderer<S> {
-    fn name(&self) -> &'static str {
-        S::NAME
-    }
-
-    fn threads(&self) -> usize {
-        self.schedule.threads()
-    }
-
-    fn render_cancellable(
-        &mut self,
-        scene: &Scene,
-        camera: &Camera,
-        tf: &TransferFunction,
-        options: &RenderOptions,
-        cancel: Cancel<'_>,
-    ) -> Result<Option<Frame>> {
-        driver::render_frame(
-            &mut self.schedule,
-            &mut self.cache,
-            scene,
-            camera,
-            tf,
-            options,
-            cancel,
-        )
-    }
-}
 
 use std::sync::atomic::{AtomicBool, AtomicU64, Ordering};
 
@@ -141,27 +91,6 @@ pub trait Renderer: Send {
                 renderer: self.name(),
             }),
         }
-    }
-}
-
-impl<R: Renderer + ?Sized> Renderer for Box<R> {
-    fn name(&self) -> &'static str {
-        (**self).name()
-    }
-
-    fn threads(&self) -> usize {
-        (**self).threads()
-    }
-
-    fn render_cancellable(
-        &mut self,
-        scene: &Scene,
-        camera: &Camera,
-        tf: &TransferFunction,
-        options: &RenderOptions,
-        cancel: Cancel<'_>,
-    ) -> Result<Option<Frame>> {
-        (**self).render_cancellable(scene, camera, tf, options, cancel)
     }
 }
 

@@ -54,15 +54,15 @@ impl PlanCache {
             return v.clone();
         }
         let lut = TfLut::new(tf, step);
-        struct OccupancyOf(f32);
+        struct OccupancyOf;
         impl IntegratorVisitor for OccupancyOf {
             type Output = Occupancy;
             fn visit<I: Integrator>(self) -> Occupancy {
-                I::occupancy(self.0)
+                I::OCCUPANCY
             }
         }
-        let occupancy = options.mode.visit(OccupancyOf(options.iso_value));
-        let skip = occupancy.skip_grid(scene.macrocells(), &lut);
+        let occupancy = options.mode.visit(OccupancyOf);
+        let skip = occupancy.skip_grid(scene.macrocells(), &lut, options.iso_value);
         let v = Arc::new((lut, skip));
         self.last = Some((key, v.clone()));
         v

@@ -20,7 +20,7 @@ use std::sync::Arc;
 
 use raycaster::prelude::*;
 use raycaster::render::{
-    AnyRenderer, FrameRequest, FrontEvent, FrontOptions, Quality, RendererFront, RendererKind,
+    FrameRequest, FrontEvent, FrontOptions, Quality, RendererFront, RendererKind,
 };
 
 /// Everything one frame depends on.
@@ -252,8 +252,10 @@ impl RenderLink {
         if !reuse {
             // Dropping the old front cancels its frame and joins its thread.
             self.front = None;
-            let renderer =
-                AnyRenderer::new(request.renderer, request.threads).map_err(|e| e.to_string())?;
+            let renderer = request
+                .renderer
+                .renderer(request.threads)
+                .map_err(|e| e.to_string())?;
             let wake = self.wake.clone();
             let front = RendererFront::spawn(
                 renderer,

@@ -58,7 +58,7 @@
 
 use std::path::Path;
 
-use super::{Claim, FileFormat, OpenOptions, Opened, Probe, Reader};
+use super::{Claim, OpenOptions, Opened, Probe, Reader};
 use crate::error::Result;
 
 #[cfg(feature = "dicom")]
@@ -79,10 +79,6 @@ mod tests;
 pub struct DicomReader;
 
 impl Reader for DicomReader {
-    fn format(&self) -> FileFormat {
-        FileFormat::Dicom
-    }
-
     fn sniff(&self, probe: &Probe) -> Option<Claim> {
         if probe.is_dir || looks_like(probe.head) {
             Some(Claim::Content)

@@ -12,7 +12,7 @@ use super::TaskOrder;
 use super::bricks::sample_range;
 use super::footprint::intersect;
 use super::work::FrameWork;
-use crate::integrator::{Integrator, RaySegment};
+use crate::integrator::{Integrator, RaySegment, Span};
 use crate::render::Cancel;
 use crate::render::driver::FrameJob;
 use crate::render::film::Film;
@@ -128,7 +128,7 @@ impl<V: Volume, I: Integrator> Shared<'_, V, I> {
                 }
                 let (k0, k1) = sample_range(seg, &brick.region);
                 if k0 < k1 {
-                    *samples += state.integrate(&self.job.ctx, seg, k0, k1);
+                    *samples += state.integrate(Span::new(&self.job.ctx, seg, k0, k1));
                     if state.is_done() {
                         buf.live -= 1;
                     }
