@@ -1,7 +1,7 @@
 //! Criterion benchmarks of the serial reference renderer: the four
 //! combinations of early ray termination (ERT) and empty-space skipping (ESS)
 //! on a generated "shapes" volume (random balls and boxes with values around
-//! 100, rendered with the `shapes` transfer function as in the seed thesis).
+//! 100, rendered with the `shapes` transfer function).
 //!
 //! Run with `cargo bench --bench serial`.
 

@@ -64,7 +64,7 @@ impl Renderer for Flaky {
         cancel: Cancel<'_>,
     ) -> raycaster::Result<Option<Frame>> {
         match camera.width {
-            13 => Err(raycaster::Error::InvalidArgument("13 is unlucky".into())),
+            13 => Err(raycaster::Error::option("test", "13 is unlucky")),
             11 => panic!("11 is worse"),
             _ => self
                 .0

@@ -1,5 +1,5 @@
-//! The parallel renderers against the serial one (SPEC §5: every renderer
-//! takes the same samples, so the images agree).
+//! The parallel renderers against the serial one (every renderer takes the
+//! same samples, so the images agree).
 //!
 //! Every scene — linear and bricked volumes, cameras outside, grazing,
 //! orthographic and inside the volume, every mode, ERT and ESS on and off,
@@ -561,7 +561,8 @@ fn every_sample_type_and_axis_order_renders_alike() {
                 let want = serial
                     .render(&scene, &camera, &tf, &options)
                     .expect("serial");
-                // (avg of mostly negative i8 data is black, as SPEC §5 says.)
+                // (avg of mostly negative i8 data is black: a negative mean
+                // over the type's maximum clamps to 0.)
                 if mode != RenderMode::Avg {
                     assert!(want.rgb.iter().any(|&c| c > 30), "{name}: blank image");
                 }

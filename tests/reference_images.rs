@@ -1,8 +1,8 @@
 //! The library's images against the independent f64 reference of
-//! `tests/common/reference.rs` (SPEC §2–§5), scene by scene.
+//! `tests/common/reference.rs`, scene by scene.
 //!
 //! Every scene is rendered by `SerialRenderer` and `TiledRenderer` (which must
-//! agree byte for byte: SPEC §5 has every renderer take the same samples) with
+//! agree byte for byte: every renderer takes the same samples) with
 //! shading off, and by the reference. Run with `--nocapture` to see the error
 //! figures of every scene.
 //!
@@ -206,8 +206,8 @@ fn custom_tf() -> RefTf {
     ])
 }
 
-/// (name, reference TF, library TF): the three presets of SPEC §4 (library
-/// side: the library's own presets) and the custom one.
+/// (name, reference TF, library TF): the `shapes`, `skull` and `ramp`
+/// presets (library side: the library's own presets) and the custom one.
 fn tfs() -> Vec<(&'static str, RefTf, TransferFunction)> {
     let preset = |n: &str| TransferFunction::preset(n, SampleType::U8).expect("preset");
     vec![
@@ -520,8 +520,8 @@ fn origin_thin_volumes_and_u16() {
     report("origin, thin volumes, u16", &out);
 }
 
-/// The library's camera rays are those of SPEC §3 (checked against the
-/// reference's f64 rays directly, pixel by pixel).
+/// The library's camera rays follow the camera's ray formula (checked
+/// against the reference's f64 rays directly, pixel by pixel).
 #[test]
 fn camera_rays_match_the_spec_formula() {
     let pair = make_pair([9, 9, 9], [1.0; 3], TestLayout::Linear, |_, _, _| 0);

@@ -1,4 +1,4 @@
-//! Camera projection (SPEC §3): a bright voxel lands on the pixel SPEC's
+//! Camera projection: a bright voxel lands on the pixel the camera's ray
 //! formula projects it to, for random perspective and orthographic cameras,
 //! and the image's orientation.
 
@@ -11,7 +11,7 @@ use glam::{UVec3, Vec3};
 use raycaster::prelude::*;
 
 /// One bright voxel at a known world position shows up at the pixel given by
-/// projecting it with SPEC §3's formula (computed independently in the
+/// projecting it with the camera's ray formula (computed independently in the
 /// reference), for perspective and orthographic cameras: the brightest pixel
 /// is within one pixel of it and the intensity centroid within 0.35 px.
 #[test]

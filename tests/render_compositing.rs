@@ -1,4 +1,4 @@
-//! Compositing with analytic answers (SPEC §4–§5): the opacity of a
+//! Compositing with analytic answers: the opacity of a
 //! homogeneous medium and of a slab of known thickness, where ERT stops, MIP
 //! of known maxima, `avg` and the `ramp` preset across sample types, and step
 //! TFs over wide value spans.
@@ -9,7 +9,7 @@ use common::scenes::{down_camera, opts, render, tf_points, u8_volume, white_line
 use glam::{UVec3, Vec3};
 use raycaster::prelude::*;
 
-// --------------------------------------------------- §4/§5: opacity of media
+// ------------------------------------------------------- opacity of media
 
 /// Samples `t_in + k·s <= t_in + len` (k = 0, 1, …) on a chord of length `len`.
 fn samples_on_chord(len: f64, s: f64) -> u32 {
@@ -218,8 +218,8 @@ fn mip_is_the_tf_of_the_maximum_composited_once() {
 
 // -------------------------------------------------------------- sample types
 
-/// `avg` divides the mean by the sample type's maximum (SPEC §5), and the
-/// `ramp` preset spans the type's range (SPEC §4).
+/// `avg` divides the mean by the sample type's maximum, and the `ramp`
+/// preset spans the type's range.
 #[test]
 fn avg_and_ramp_follow_the_sample_type() {
     let dims = [9u32, 9, 9];
@@ -246,7 +246,7 @@ fn avg_and_ramp_follow_the_sample_type() {
     assert_eq!(px, [g; 3]);
 }
 
-/// LIBRARY BUG (SPEC §4, "step": the RGBA of the last point whose value is
+/// LIBRARY BUG (a step TF gives the RGBA of the last point whose value is
 /// <= v): DVR looks the TF up in a table (`TfLut`) with `scale` entries per
 /// value unit, a power of two chosen to keep ~4096 entries. When the TF's
 /// points span more than 4096 value units (u16 data, or i16 CT data with a

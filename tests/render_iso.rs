@@ -1,4 +1,4 @@
-//! Iso-surfaces (SPEC §5): hits on an analytic sphere, its silhouette,
+//! Iso-surfaces: hits on an analytic sphere, its silhouette,
 //! shading towards the rim, and iso hits and images that ESS leaves
 //! unchanged.
 
@@ -240,7 +240,7 @@ fn ess_changes_no_iso_hit_on_random_rays() {
     );
 }
 
-/// LIBRARY BUG (SPEC §5, "ESS must change nothing"): in iso mode with ESS
+/// LIBRARY BUG (ESS must change nothing): in iso mode with ESS
 /// on, when a ray's *first* sample lies in an empty macrocell whose empty box
 /// the ray leaves within one step, `IsoState::integrate` neither takes that
 /// sample nor records it as the previous one (it only visits the first sample
@@ -274,7 +274,7 @@ fn iso_with_ess_finds_a_crossing_right_after_the_first_sample() {
     assert_eq!(
         on,
         Some(off),
-        "with ESS on the iso hit is lost (ESS must change nothing, SPEC §5)"
+        "with ESS on the iso hit is lost (ESS must change nothing)"
     );
 }
 

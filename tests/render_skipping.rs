@@ -1,6 +1,6 @@
-//! Empty-space skipping and early ray termination (SPEC §5): ESS changes no
-//! DVR state or MIP maximum on single rays, ESS and ERT change whole images
-//! only within what the SPEC allows, and ESS saves the samples of empty
+//! Empty-space skipping and early ray termination: ESS changes no DVR state
+//! or MIP maximum on single rays, ESS and ERT change whole images only within
+//! what ERT's threshold allows, and ESS saves the samples of empty
 //! space.
 
 mod common;
@@ -11,7 +11,7 @@ use glam::{UVec3, Vec3};
 use raycaster::geometry::Ray;
 use raycaster::prelude::*;
 
-/// ESS must change nothing (SPEC §5): single rays integrated with and
+/// ESS must change nothing: single rays integrated with and
 /// without it give bit-identical DVR states and MIP maxima, and the same iso
 /// hits, on random rays (from outside and from inside the box) through the
 /// phantom data in both layouts.

@@ -1,5 +1,5 @@
 //! The generated "shapes" volume both benchmarks render: random balls and
-//! boxes with values around 100, as in the seed thesis's benchmark data.
+//! boxes with values around 100, like `vol_gen --generator shapes`.
 
 use glam::{UVec3, Vec3};
 

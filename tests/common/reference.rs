@@ -1,6 +1,7 @@
-//! An independent, deliberately naive implementation of SPEC §2–§5 in `f64`.
+//! An independent, deliberately naive implementation in `f64` of the
+//! rendering rules: world space, camera, transfer function, integration.
 //!
-//! Written from the SPEC text only: no lookup tables, no acceleration, no
+//! Written from the rules' text only: no lookup tables, no acceleration, no
 //! shading, every quantity recomputed from its definition. It is slow and
 //! obviously correct, which is the point: the library's images are compared
 //! against it in `tests/reference_images.rs`.
@@ -40,9 +41,10 @@ pub fn normalize(a: V3) -> V3 {
     scale(a, 1.0 / length(a))
 }
 
-// ---------------------------------------------------------------- §2 volume
+// ------------------------------------------------------------------- volume
 
-/// Samples on a grid in world space (SPEC §2).
+/// Samples on a grid in world space: sample (x, y, z) at
+/// `origin + (x·sx, y·sy, z·sz)`, trilinear in between.
 #[derive(Debug, Clone)]
 pub struct RefVolume {
     /// X, Y, Z.
@@ -120,7 +122,7 @@ impl RefVolume {
     }
 }
 
-// ---------------------------------------------------------------- §3 camera
+// ------------------------------------------------------------------- camera
 
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub enum RefProjection {
@@ -128,7 +130,8 @@ pub enum RefProjection {
     Orthographic,
 }
 
-/// The camera of SPEC §3.
+/// A perspective or orthographic camera: eye P, look-at T, up U, vertical
+/// field of view, image W×H.
 #[derive(Debug, Clone, Copy)]
 pub struct RefCamera {
     pub position: V3,
@@ -179,7 +182,7 @@ impl RefCamera {
 
     /// Origin and unit direction of the ray of pixel (i, j): i from the left,
     /// j from the top. Orthographic rays start on the plane through P
-    /// perpendicular to d (the plane the SPEC sizes as 2·h·dist high).
+    /// perpendicular to d, 2·h·dist(P, T) high.
     pub fn ray(&self, i: u32, j: u32) -> (V3, V3) {
         let f = self.frame();
         let sx = (2.0 * (i as f64 + 0.5) / self.width as f64 - 1.0) * f.h * f.a;
@@ -218,7 +221,7 @@ impl RefCamera {
     }
 }
 
-// ---------------------------------------------------------------- §4 TF
+// ----------------------------------------------------------------------- TF
 
 #[derive(Debug, Clone, Copy)]
 pub struct RefTfPoint {
@@ -227,7 +230,8 @@ pub struct RefTfPoint {
     pub opacity: f64,
 }
 
-/// A transfer function as SPEC §4 defines it.
+/// A transfer function: linear (clamped outside the points) or step
+/// (transparent below the first point); opacity per world unit.
 #[derive(Debug, Clone)]
 pub struct RefTf {
     pub step: bool,
@@ -247,7 +251,7 @@ fn c255(r: f64, g: f64, b: f64) -> V3 {
 }
 
 impl RefTf {
-    /// The `shapes` preset, typed in from SPEC §4.
+    /// The `shapes` preset, typed in from its definition.
     pub fn shapes() -> Self {
         RefTf {
             step: true,
@@ -260,7 +264,7 @@ impl RefTf {
         }
     }
 
-    /// The `skull` preset, typed in from SPEC §4.
+    /// The `skull` preset, typed in from its definition.
     pub fn skull() -> Self {
         RefTf {
             step: true,
@@ -328,7 +332,7 @@ impl RefTf {
     }
 }
 
-// ---------------------------------------------------------------- §5 rays
+// --------------------------------------------------------------------- rays
 
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub enum RefMode {
@@ -393,7 +397,8 @@ pub fn clip(bmin: V3, bmax: V3, o: V3, d: V3) -> Option<(f64, f64)> {
     (t_in <= t_out).then_some((t_in, t_out))
 }
 
-/// Integrates one ray (unit direction `d`) as SPEC §5 says.
+/// Integrates one ray (unit direction `d`): samples at `t_k = t_in + k·s`
+/// while `t_k <= t_out`, composited per mode.
 pub fn integrate(vol: &RefVolume, tf: &RefTf, opt: &RefOptions, o: V3, d: V3) -> RefRay {
     let (bmin, bmax) = vol.bounds();
     let mut out = RefRay::default();

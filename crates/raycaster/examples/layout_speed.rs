@@ -36,8 +36,10 @@ fn run(path: &str, preset: &str, repeat: usize) -> Result<(), raycaster::Error> 
     let t = linear.sample_type();
     for (name, volume) in [("linear", linear), ("bricked16", bricked)] {
         let scene = Scene::new(volume);
-        let tf = TransferFunction::preset_for_data(preset, t, scene.value_range())
-            .ok_or_else(|| raycaster::Error::InvalidArgument(format!("unknown preset {preset}")))?;
+        let tf =
+            TransferFunction::preset_for_data(preset, t, scene.value_range()).ok_or_else(|| {
+                raycaster::Error::option("tf-preset", format!("unknown preset {preset}"))
+            })?;
         let bounds = scene.grid().bounds();
         let c = bounds.center();
         let r = (bounds.max - bounds.min).length() * 1.2;

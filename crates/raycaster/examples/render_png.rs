@@ -26,7 +26,7 @@ fn run(input: &str, output: &str, preset: &str) -> Result<(), raycaster::Error> 
     // Map the file (no copy), build the empty-space-skipping data once.
     let volume = raycaster::format::open(input.as_ref(), LoadMode::Map)?;
     let tf = TransferFunction::preset(preset, volume.sample_type())
-        .ok_or_else(|| raycaster::Error::InvalidArgument(format!("unknown preset {preset}")))?;
+        .ok_or_else(|| raycaster::Error::option("tf-preset", format!("unknown preset {preset}")))?;
     let scene = Scene::new(volume);
     // A camera that frames the whole volume from the +z side.
     let camera = Camera::framing(&scene.grid().bounds(), 512, 512, 45.0);

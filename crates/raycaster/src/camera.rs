@@ -1,4 +1,4 @@
-//! Cameras (SPEC §3): a perspective or orthographic view that turns a pixel
+//! Cameras: a perspective or orthographic view that turns a pixel
 //! into a ray, and projects a box to the screen rectangle it covers.
 
 use glam::Vec3;
@@ -116,7 +116,7 @@ impl Camera {
     }
 
     /// A camera looking at the centre of `bounds` from the +z side, far enough
-    /// that the whole box is in view (the default view of SPEC §6).
+    /// that the whole box is in view (the default view of `vol_app render`).
     pub fn framing(bounds: &Aabb, width: u32, height: u32, fov_y_deg: f32) -> Self {
         let center = bounds.center();
         let radius = ((bounds.max - bounds.min).length() * 0.5).max(1e-3);

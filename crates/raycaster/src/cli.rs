@@ -1,7 +1,7 @@
 //! What the workspace's programs (`vol_app`, `vol_gen`) do alike on the
 //! command line (feature `clap`): an error is one line on stderr,
 //! `PROGRAM: error: MESSAGE`; help and version go to stdout; a panic is one
-//! line too, never a backtrace (SPEC §6).
+//! line too, never a backtrace.
 
 use std::fmt::Display;
 use std::process::ExitCode;

@@ -77,9 +77,6 @@ pub enum Error {
         /// The renderer's name.
         renderer: &'static str,
     },
-    /// An argument given by the caller is out of range.
-    #[error("{0}")]
-    InvalidArgument(String),
 }
 
 impl Error {

@@ -1,4 +1,5 @@
-//! Transfer functions (SPEC §4): map a sample value to colour and opacity.
+//! Transfer functions: map a sample value to colour and opacity (the opacity
+//! is for one world unit of path length).
 //!
 //! A [`TransferFunction`] is the user's description (control points, JSON
 //! files, named presets). Renderers never evaluate it per sample: they use a
@@ -47,7 +48,7 @@ pub struct TransferFunction {
     pub points: Vec<TfPoint>,
 }
 
-/// Names of the built-in presets (SPEC §4).
+/// Names of the built-in presets.
 pub const PRESET_NAMES: [&str; 6] = [
     "shapes",
     "skull",
@@ -152,7 +153,7 @@ impl TransferFunction {
     /// no physical unit, so its control points sit at fixed fractions of the
     /// brightest value (tuned on the FLAIR, MNI152 and DICOM MRI data in
     /// ../shared/data). The CT presets are in Hounsfield units and `ramp`
-    /// spans the type (SPEC §4).
+    /// spans the type (white, transparent at 0, opaque at the type's maximum).
     pub fn preset_for_data(
         name: &str,
         sample_type: SampleType,
@@ -234,7 +235,10 @@ impl TransferFunction {
         })
     }
 
-    /// Colour and opacity (per world unit) at value `v`, exactly as SPEC §4.
+    /// Colour and opacity (per world unit) at value `v`, exactly: linear
+    /// interpolates between neighbouring points and clamps outside them;
+    /// step takes the last point whose value is <= `v` (transparent below
+    /// the first).
     pub fn evaluate(&self, v: f32) -> Vec4 {
         let p = &self.points;
         let rgba = |q: &TfPoint| Vec4::new(q.color[0], q.color[1], q.color[2], q.opacity);
@@ -291,7 +295,7 @@ fn mr_scale(t: SampleType) -> f32 {
 /// below the first and above the last point. A table interval that has a
 /// control point strictly inside it (a step or a kink the table cannot
 /// represent) is flagged, and values falling there are evaluated exactly, so
-/// lookups follow SPEC §4 whatever the points.
+/// lookups equal [`TransferFunction::evaluate`] whatever the points.
 #[derive(Debug, Clone)]
 pub struct TfLut {
     entries: Vec<Vec4>,

@@ -1,4 +1,4 @@
-//! Command-line definitions (SPEC §6).
+//! Command-line definitions.
 
 use std::path::PathBuf;
 use std::process::ExitCode;
@@ -122,7 +122,7 @@ pub enum RawOrder {
     Zfast,
 }
 
-/// The description of a headerless (raw) file (SPEC §6).
+/// The description of a headerless (raw) file.
 #[derive(Debug, Clone, Args)]
 #[command(next_help_heading = "Raw files (no header)")]
 pub struct RawArgs {

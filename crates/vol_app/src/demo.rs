@@ -1,10 +1,10 @@
 //! The built-in default volume: what `vol_app` shows when no file is given.
 //!
-//! A 160³ scene in the style of the seed thesis's generated benchmark data:
+//! A 160³ scene in the style of the generated benchmark data (`shapes`):
 //! balls and boxes whose values (around 100) fall into the three bands of the
 //! `shapes` transfer function (faint red, blue, opaque green), around a hollow
 //! sphere shell, so the default view shows translucency, occlusion and
-//! shading. Generated in memory in a few tens of milliseconds.
+//! shading. Generated in memory at start-up, quickly.
 
 use glam::{UVec3, Vec3};
 use raycaster::volume::{AnyVolume, Grid};

@@ -1,6 +1,6 @@
 //! `vol_app`: the volume viewer and its headless renderer.
 //!
-//! `vol_app render FILE ...` renders without a window (SPEC §6). `vol_app
+//! `vol_app render FILE ...` renders without a window. `vol_app
 //! [FILE]` without a subcommand opens the interactive viewer (the library's
 //! [`vol_app::viewer`]).
 

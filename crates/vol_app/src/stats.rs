@@ -1,4 +1,4 @@
-//! The `--stats` JSON object (SPEC §6).
+//! The `--stats` JSON object of `vol_app render`.
 
 use serde::Serialize;
 

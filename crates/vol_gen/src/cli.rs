@@ -1,4 +1,4 @@
-//! The command line (SPEC §6), parsed with `clap`, and its validation into a
+//! The command line, parsed with `clap`, and its validation into a
 //! [`Config`]. The reference implementation's spellings are accepted as they
 //! are: `--dims=X,Y,Z`, `--layout z` (bricked) and `-o` for `--output-file`.
 
@@ -253,7 +253,7 @@ mod tests {
         Cli::try_parse_from(std::iter::once("vol_gen").chain(args.iter().copied()))
     }
 
-    /// The example at the end of `--help` (the seed thesis's command), as
+    /// The example at the end of `--help` (the benchmark volume's command), as
     /// arguments after the program name.
     fn help_example() -> Vec<&'static str> {
         let (_, example) = AFTER_HELP

@@ -1,7 +1,8 @@
 //! `vol_gen`: a fast, parallel generator of test volumes in the `.vol` format
-//! (SPEC §1), with the command line of SPEC §6.
+//! (26-byte header, linear or bricked samples), with the command line the
+//! README describes.
 //!
-//! The design follows the seed thesis (§3.5, §4.9): a *sample generator*
+//! The design: a *sample generator*
 //! gives any voxel its value ([`generators`]), an *order* decides the sequence
 //! in which samples appear in the file ([`order`]), and the samples stream to
 //! the file in that order ([`writer`]). Work is cut into batches of a few MB

@@ -1,4 +1,4 @@
-//! File order: how the samples of a `.vol` file (SPEC §1) are cut into
+//! File order: how the samples of a `.vol` file are cut into
 //! batches, written one after another, and each batch into pieces, filled in
 //! parallel.
 //!

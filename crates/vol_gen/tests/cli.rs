@@ -1,6 +1,7 @@
 //! End-to-end tests of the `vol_gen` binary: round trips through the
-//! library's reader, file sizes per SPEC §1, determinism, safety (overwrite,
-//! bad arguments, Ctrl-C) and the seed thesis's argument spellings.
+//! library's reader, file sizes (26-byte header plus the samples),
+//! determinism, safety (overwrite, bad arguments, Ctrl-C) and the reference
+//! implementation's argument spellings (`--dims=X,Y,Z`, `--layout z`, `-o`).
 
 mod common;
 
@@ -15,7 +16,8 @@ use raycaster::storage::LoadMode;
 
 const GENERATORS: [&str; 6] = ["shapes", "solid", "noise", "sphere", "sdf", "metaballs"];
 
-/// The file length SPEC §1 gives, computed independently of the library.
+/// The file length of the `.vol` format (26 header bytes, then X·Y·Z samples
+/// or, bricked, nx·ny·nz·B³), computed independently of the library.
 fn spec_len(dims: [u64; 3], side: Option<u64>) -> u64 {
     match side {
         None => 26 + dims[0] * dims[1] * dims[2],

@@ -81,7 +81,7 @@ impl FileFormat {
     /// A short human-readable name.
     pub fn name(self) -> &'static str {
         match self {
-            FileFormat::Vol => ".vol (SPEC §1)",
+            FileFormat::Vol => ".vol (26-byte header)",
             FileFormat::DavisVol => "UC Davis .vol",
             FileFormat::Nrrd => "NRRD",
             FileFormat::Nifti => "NIfTI-1",

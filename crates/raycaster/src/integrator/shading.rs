@@ -1,4 +1,4 @@
-//! Phong shading with a headlight (SPEC §5).
+//! Phong shading with a headlight.
 
 use glam::Vec3;
 

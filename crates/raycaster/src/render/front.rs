@@ -1,6 +1,6 @@
 //! The asynchronous renderer front: any renderer on its own thread behind a
-//! handle that takes commands and delivers finished frames (the seed
-//! thesis's `RendererFront`, §3.1 and §4.5, with superseding requests).
+//! handle that takes commands and delivers finished frames, with newer
+//! requests superseding unfinished ones.
 //!
 //! ```text
 //!   client ──request/cancel/set_scene──▶ commands ──▶ render thread

@@ -11,7 +11,8 @@
 //!   integrates (tile, brick) tasks front to back, each tile carrying its rays'
 //!   state from brick to brick.
 //!
-//! All three take the same samples (SPEC §5), so they give the same images.
+//! All three take the same samples (at `t_in + k·step` along every ray), so
+//! they give the same images.
 //! [`AnyRenderer`] picks one at run time ([`RendererKind::default`] is the
 //! object renderer, the fastest measured), and [`RendererFront`] runs any
 //! renderer on its own thread behind an asynchronous handle.

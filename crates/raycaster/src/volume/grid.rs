@@ -1,4 +1,5 @@
-//! The geometry of a sample grid: dimensions, spacing, origin (SPEC §2).
+//! The geometry of a sample grid: dimensions, spacing, origin; sample
+//! (x, y, z) sits at `origin + (x·sx, y·sy, z·sz)`.
 
 use glam::{UVec3, Vec3};
 

@@ -224,7 +224,7 @@ impl ViewerApp {
         Ok(())
     }
 
-    /// Writes the TF as JSON (SPEC §4).
+    /// Writes the TF as JSON (the format that `--tf` reads).
     pub fn save_tf_file(&mut self, path: &Path) -> Result<(), String> {
         std::fs::write(path, self.settings.tf.to_json())
             .map_err(|e| format!("{}: {e}", path.display()))?;
@@ -441,9 +441,9 @@ pub(super) fn short_name(path: &Path) -> String {
 }
 
 /// The preset for a volume whose current TF shows nothing: by the modality
-/// the file declares, else `ramp` for 8-bit data (SPEC's default) and the
-/// data-fitted `mr-default` for wider types, where a ramp over the whole
-/// type range would be nearly transparent.
+/// the file declares, else `ramp` for 8-bit data (`vol_app render`'s
+/// default) and the data-fitted `mr-default` for wider types, where a ramp
+/// over the whole type range would be nearly transparent.
 fn default_preset(info: &VolumeInfo) -> &'static str {
     match info.file.as_ref().and_then(|f| f.modality.as_deref()) {
         Some("CT") => "ct-bone",

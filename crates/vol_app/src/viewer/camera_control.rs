@@ -2,8 +2,8 @@
 //!
 //! The camera sits at `target + distance·(cos φ·sin θ, sin φ, cos φ·cos θ)`
 //! (azimuth θ, elevation φ) and looks at the target with +Y up, so azimuth 0
-//! and elevation 0 is the SPEC §6 default view from the +z side. Mouse deltas
-//! come in UI points; nothing here knows about egui.
+//! and elevation 0 is `vol_app render`'s default view from the +z side.
+//! Mouse deltas come in UI points; nothing here knows about egui.
 
 use glam::{Vec2, Vec3};
 use raycaster::camera::Camera;
@@ -152,7 +152,8 @@ impl OrbitCamera {
         self.target + self.direction() * self.distance
     }
 
-    /// The camera's right and true-up vectors (SPEC §3 frame).
+    /// The camera's right and true-up vectors (`r = normalize(d × U)`,
+    /// `u = r × d`, as the library's camera).
     fn right_up(&self) -> (Vec3, Vec3) {
         let d = -self.direction();
         let right = d.cross(Vec3::Y).normalize_or(Vec3::X);

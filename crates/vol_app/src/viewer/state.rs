@@ -16,11 +16,10 @@ use serde::{Deserialize, Serialize};
 /// The key of the settings in eframe's storage.
 pub const STORAGE_KEY: &str = "vol_app.viewer.settings";
 
-/// The fine sampling step, in units of the smallest voxel spacing (the seed
-/// thesis's demo used 0.2 on unit-spaced data).
+/// The fine sampling step, in units of the smallest voxel spacing (0.2 is
+/// the benchmark frame's step on unit-spaced data).
 pub const FINE_STEP: f32 = 0.2;
-/// The coarse sampling step, in units of the smallest voxel spacing (the
-/// thesis's 0.9).
+/// The coarse sampling step, in units of the smallest voxel spacing.
 pub const COARSE_STEP: f32 = 0.9;
 /// Resolution factor of the preview frames rendered while the camera moves in
 /// adaptive mode.

@@ -1,4 +1,4 @@
-//! `shapes`: the seed thesis's benchmark data. N random spheres and
+//! `shapes`: the benchmark data (see the README). N random spheres and
 //! axis-aligned cuboids of about `--object-size` voxels, each filled with one
 //! value drawn uniformly from `--sample − 8 ..= --sample + 8`. Under the
 //! `shapes` transfer function (steps at 85, 95, 100, 115) that gives nearly

@@ -1,6 +1,6 @@
 //! The object-parallel renderer: bricks integrated front to back into tiles
-//! (the design of the seed thesis's object-parallel renderer), with the
-//! changes that measured faster on this project.
+//! (the object-parallel design of the project's seed thesis, see the
+//! README), with the changes that measured faster on this project.
 //!
 //! # The algorithm
 //!
@@ -19,8 +19,8 @@
 //!    the key is the Manhattan distance, in brick coordinates, from the brick
 //!    holding the eye; along any ray from the eye every brick coordinate
 //!    moves away from the eye's, so the key strictly increases from one brick
-//!    to the next on every ray (sorting by distance to brick centres, as the
-//!    thesis does, has no such guarantee). For an orthographic camera the key
+//!    to the next on every ray (sorting by distance to brick centres has no
+//!    such guarantee). For an orthographic camera the key
 //!    is `Σ sign(dᵢ)·brickᵢ`.
 //! 4. **Queues.** Each brick's box is projected to the screen (clipped at the
 //!    eye, so bricks around a camera inside the volume get tight rectangles
@@ -30,8 +30,8 @@
 //!    the tile's buffers — per pixel the ray's [`RaySegment`] and
 //!    [`RayState`] — through one `crossbeam-channel` queue that all render
 //!    threads take from: owning the message is owning the tile, so there is
-//!    no shared mutable state and no `unsafe` (the thesis shared raw tile
-//!    pointers through `UnsafeCell` instead). A render thread integrates the
+//!    no shared mutable state and no `unsafe` (no raw tile pointers shared
+//!    through `UnsafeCell`). A render thread integrates the
 //!    samples of each pixel's ray that lie in the brick, skipping rays
 //!    already finished (ERT stays global: the tile carries its opacity from
 //!    brick to brick); a tile whose rays are all finished drops the rest of
@@ -41,7 +41,7 @@
 //!    finished — the tile is resolved to RGB and counted done; the last tile
 //!    ends the frame. With [`ObjectConfig::composite_threads`] > 0 this is
 //!    done by dedicated compositing threads that receive finished tasks on a
-//!    second channel (the thesis's design); with 0 (the default) each render
+//!    second channel; with 0 (the default) each render
 //!    thread composites its own tasks, which saves a thread — on a 2-core
 //!    machine, the difference between one render thread and two.
 //! 7. **Task order.** With [`TaskOrder::TileFirst`] (the default) a render
@@ -49,7 +49,7 @@
 //!    a tile is integrated brick by brick on one core while the other cores
 //!    work on other tiles: the tile's rays and the brick's voxels stay in
 //!    that core's caches. [`TaskOrder::Queue`] sends it back through the
-//!    queue behind all other tiles, as the thesis does. Tile-first measured
+//!    queue behind all other tiles. Tile-first measured
 //!    faster on the benchmark frame with one and with two threads (the
 //!    README has the figures).
 //!
@@ -154,8 +154,8 @@ pub enum TaskOrder {
         value(help = "A render thread keeps its tile until the tile is done")
     )]
     TileFirst,
-    /// Back to the shared queue, behind every other tile's task (the
-    /// thesis's scheme): all tiles advance in turn.
+    /// Back to the shared queue, behind every other tile's task: all tiles
+    /// advance in turn.
     #[cfg_attr(
         feature = "clap",
         value(help = "Every task goes back to the shared queue (the seed thesis's scheme)")

@@ -113,7 +113,7 @@ impl<V: Volume, I: Integrator> Shared<'_, V, I> {
             return;
         };
         for j in r.y0..r.y1 {
-            // A task can take milliseconds: look for cancellation per row.
+            // A task can take a while: look for cancellation per row.
             // The tile is left half-done, but a cancelled frame is dropped.
             if self.cancel.is_cancelled() {
                 return;
