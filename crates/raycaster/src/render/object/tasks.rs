@@ -176,46 +176,47 @@ impl<V: Volume, I: Integrator> Shared<'_, V, I> {
 
     /// A render thread: takes tasks until the frame ends.
     fn render_loop(&self) -> WorkerOut {
-        let _guard = AbortOnPanic(self);
-        let mut out = WorkerOut::default();
-        loop {
-            let task = crossbeam_channel::select! {
-                recv(self.tasks.1) -> t => t,
-                recv(self.stop_rx) -> _ => break,
-            };
-            let Ok(mut task) = task else { break };
-            if self.stopped() {
-                self.abort();
+        self.worker_loop(&self.tasks.1, |mut task, out| {
+            self.render_task(&mut task, &mut out.samples);
+            if !self.inline.load(Ordering::Relaxed) {
+                let _ = self.done.0.send(task);
+                return;
+            }
+            let keep = self.order == TaskOrder::TileFirst;
+            while let Some(mut next) = self.composite(task, &mut out.tiles) {
+                if keep && !self.stopped() {
+                    self.render_task(&mut next, &mut out.samples);
+                    task = next;
+                    continue;
+                }
+                // The receiver lives in `self`: sending cannot fail.
+                let _ = self.tasks.0.send(next);
                 break;
             }
-            self.render_task(&mut task, &mut out.samples);
-            if self.inline.load(Ordering::Relaxed) {
-                let keep = self.order == TaskOrder::TileFirst;
-                let mut task = task;
-                while let Some(next) = self.composite(task, &mut out.tiles) {
-                    if keep && !self.stopped() {
-                        task = next;
-                        self.render_task(&mut task, &mut out.samples);
-                        continue;
-                    }
-                    // The receiver lives in `self`: sending cannot fail.
-                    let _ = self.tasks.0.send(next);
-                    break;
-                }
-            } else {
-                let _ = self.done.0.send(task);
-            }
-        }
-        out
+        })
     }
 
     /// A compositing thread: takes finished tasks until the frame ends.
     fn composite_loop(&self) -> WorkerOut {
+        self.worker_loop(&self.done.1, |task, out| {
+            if let Some(next) = self.composite(task, &mut out.tiles) {
+                let _ = self.tasks.0.send(next);
+            }
+        })
+    }
+
+    /// Takes tasks from `queue` and hands them to `work` until the frame
+    /// ends (or stops early, which ends it for every thread).
+    fn worker_loop(
+        &self,
+        queue: &Receiver<Task<I>>,
+        mut work: impl FnMut(Task<I>, &mut WorkerOut),
+    ) -> WorkerOut {
         let _guard = AbortOnPanic(self);
         let mut out = WorkerOut::default();
         loop {
             let task = crossbeam_channel::select! {
-                recv(self.done.1) -> t => t,
+                recv(queue) -> t => t,
                 recv(self.stop_rx) -> _ => break,
             };
             let Ok(task) = task else { break };
@@ -223,9 +224,7 @@ impl<V: Volume, I: Integrator> Shared<'_, V, I> {
                 self.abort();
                 break;
             }
-            if let Some(next) = self.composite(task, &mut out.tiles) {
-                let _ = self.tasks.0.send(next);
-            }
+            work(task, &mut out);
         }
         out
     }
@@ -297,27 +296,23 @@ pub(super) fn run_frame<V: Volume, I: Integrator>(
     }
     let outs = std::thread::scope(|s| {
         let shared = &shared;
-        let mut handles = Vec::new();
-        for i in 0..composite_threads {
-            let spawned = std::thread::Builder::new()
-                .name(format!("raycaster-composite-{i}"))
-                .spawn_scoped(s, move || shared.composite_loop());
-            match spawned {
-                Ok(h) => handles.push(h),
-                // Fewer threads than asked for still finish the frame.
-                Err(_) => break,
-            }
-        }
+        // Fewer threads than asked for still finish the frame.
+        let spawn = |name: String, renders: bool| {
+            std::thread::Builder::new()
+                .name(name)
+                .spawn_scoped(s, move || match renders {
+                    true => shared.render_loop(),
+                    false => shared.composite_loop(),
+                })
+                .ok()
+        };
+        let mut handles: Vec<_> = (0..composite_threads)
+            .map_while(|i| spawn(format!("raycaster-composite-{i}"), false))
+            .collect();
         shared.inline.store(handles.is_empty(), Ordering::Relaxed);
-        for i in 1..render_threads {
-            let spawned = std::thread::Builder::new()
-                .name(format!("raycaster-object-{i}"))
-                .spawn_scoped(s, move || shared.render_loop());
-            match spawned {
-                Ok(h) => handles.push(h),
-                Err(_) => break,
-            }
-        }
+        handles.extend(
+            (1..render_threads).map_while(|i| spawn(format!("raycaster-object-{i}"), true)),
+        );
         let mine = shared.render_loop();
         let mut outs = vec![mine];
         for h in handles {
