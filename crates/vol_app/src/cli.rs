@@ -36,7 +36,7 @@ pub struct ViewerArgs {
     /// ct-soft, mr-default.
     #[arg(long, value_name = "NAME")]
     pub tf_preset: Option<String>,
-    /// Transfer function JSON file for the first volume (SPEC §4).
+    /// Transfer function JSON file for the first volume (format in the README).
     #[arg(long, value_name = "FILE.json", conflicts_with = "tf_preset")]
     pub tf: Option<PathBuf>,
     /// How to read a headerless FILE.
@@ -225,7 +225,7 @@ pub struct RenderArgs {
     /// Sampling step in world units. Default: half the smallest spacing.
     #[arg(long, value_name = "S")]
     pub step: Option<f32>,
-    /// Transfer function JSON file (SPEC §4).
+    /// Transfer function JSON file (format in the README).
     #[arg(long, value_name = "FILE.json", conflicts_with = "tf_preset")]
     pub tf: Option<PathBuf>,
     /// Named transfer function: shapes, skull, ramp, ct-bone, ct-soft, mr-default.

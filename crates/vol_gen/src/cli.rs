@@ -36,7 +36,7 @@ Sizes of sphere, sdf, metaballs and noise are in units of the finest spacing,
 so objects stay round in world space whatever --shape is.
 
 Layouts: linear (z fastest) or bricked (alias z): cubic bricks of --block-size
-B in 2..=255 overlapping by one voxel (SPEC section 1).
+B in 2..=255 overlapping by one voxel (the .vol format in the README).
 
 The same arguments and --seed give the same bytes, whatever the thread count;
 without --seed a random seed is used and printed. The file is written under a
