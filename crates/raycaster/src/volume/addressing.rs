@@ -282,6 +282,9 @@ pub struct Bricked {
     /// additions instead of three divisions. Shared, so that the typed view
     /// a frame makes holds its own copy of the addressing cheaply.
     offset: [std::sync::Arc<[usize]>; 3],
+    /// Per z, the last z of the contiguous run it starts (the end of its
+    /// brick along z), so walking a row needs no division.
+    run_end: std::sync::Arc<[u32]>,
     neighbour: [usize; 3],
 }
 
@@ -307,7 +310,14 @@ impl Bricked {
                 .collect()
         };
         let step = |n: u32, s: usize| if n > 1 { s } else { 0 };
+        let run_end = (0..dims.z)
+            .map(|z| {
+                let (k, _) = bricks.split(z, bricks.count.z);
+                (k * (side - 1) + side - 1).min(dims.z - 1)
+            })
+            .collect();
         Ok(Bricked {
+            run_end,
             offset: [
                 table(dims.x, bricks.count.x, n.y * n.z, b * b),
                 table(dims.y, bricks.count.y, n.z, b),
@@ -371,13 +381,11 @@ impl Addressing for Bricked {
     #[inline]
     fn row_runs(&self, at: UVec3, lo: u32, hi: u32, mut run: impl FnMut(Range<usize>, u32)) {
         let base = self.offset[0][at.x as usize] + self.offset[1][at.y as usize];
-        let step = self.bricks.side - 1;
         let mut z = lo;
         while z <= hi {
-            let (k, _) = self.bricks.split(z, self.bricks.count.z);
-            // Through the table: the grid's last plane may sit at the far
+            // Through the tables: the grid's last plane may sit at the far
             // face of the last brick rather than open a new one.
-            let end = hi.min(k * step + step);
+            let end = hi.min(self.run_end[z as usize]);
             let start = base + self.offset[2][z as usize];
             run(start..start + (end - z) as usize + 1, z);
             z = end + 1;
