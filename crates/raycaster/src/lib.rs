@@ -11,7 +11,7 @@
 //!
 //! | module | concept |
 //! |---|---|
-//! | [`format`] | file formats: headers, detection, reading and writing |
+//! | [`format`](mod@format) | file formats: headers, detection, reading and writing |
 //! | [`storage`] | samples in RAM or memory-mapped |
 //! | [`volume`] | the [`Volume`](volume::Volume) trait, linear and bricked layouts, trilinear sampling |
 //! | [`accel`] | macrocell value ranges and the skip distance field |

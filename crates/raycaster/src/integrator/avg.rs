@@ -15,7 +15,7 @@ pub struct AvgState {
 }
 
 impl Integrator for AvgState {
-    /// Adds samples `k0..k1`. Every sample counts, so nothing is skipped.
+    /// Adds the span's samples. Every sample counts, so nothing is skipped.
     #[inline]
     fn integrate<V: Volume>(&mut self, span: Span<'_, V>) -> u64 {
         let (k0, k1) = (span.start, span.end.min(span.seg.count));

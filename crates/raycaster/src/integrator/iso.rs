@@ -20,7 +20,7 @@ impl Integrator for IsoState {
 
     const OCCUPANCY: Occupancy = Occupancy::IsoValue;
 
-    /// Searches samples `k0..k1` for a sign change of `value − iso`.
+    /// Searches the span's samples for a sign change of `value − iso`.
     ///
     /// ESS: runs in cells whose range excludes the iso value are skipped,
     /// but the first sample into and the last sample out of an empty run are

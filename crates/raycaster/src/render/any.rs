@@ -1,7 +1,6 @@
 //! [`RendererKind`]: the renderers of this crate by name, and the
 //! [`AnyRenderer`] a kind builds at run time.
 
-use super::object::resolve_threads;
 use super::{ObjectRenderer, Renderer, SerialRenderer, TiledRenderer};
 use crate::error::Result;
 
@@ -58,10 +57,9 @@ impl RendererKind {
     pub fn renderer(self, threads: usize) -> Result<AnyRenderer> {
         Ok(match self {
             RendererKind::Serial => Box::new(SerialRenderer::new()),
-            RendererKind::Tiles => Box::new(TiledRenderer::new(
-                resolve_threads(threads),
-                TiledRenderer::DEFAULT_TILE,
-            )?),
+            RendererKind::Tiles => {
+                Box::new(TiledRenderer::new(threads, TiledRenderer::DEFAULT_TILE)?)
+            }
             RendererKind::Object => Box::new(ObjectRenderer::new(threads)?),
         })
     }

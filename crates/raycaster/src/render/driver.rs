@@ -122,6 +122,7 @@ impl<S: Schedule> Renderer for FrameRenderer<S> {
 }
 
 /// What a frame is rendered from.
+#[derive(Clone, Copy)]
 struct FrameInputs<'a> {
     scene: &'a Scene,
     camera: &'a Camera,
@@ -136,38 +137,36 @@ fn render_frame<S: Schedule>(
     inputs: FrameInputs<'_>,
     cancel: Cancel<'_>,
 ) -> Result<Option<Frame>> {
-    let FrameInputs {
-        scene,
-        camera,
-        tf,
-        options,
-    } = inputs;
     let start = Instant::now();
-    let plan = FramePlan::new(cache, scene, camera, tf, options)?;
+    let FrameInputs { scene, options, .. } = inputs;
+    let plan = FramePlan::new(cache, scene, inputs.camera, inputs.tf, options)?;
     let mut film = Film::new(plan.width, plan.height, options.background);
 
     struct WithVolume<'a, S> {
         schedule: &'a mut S,
         plan: &'a FramePlan,
-        scene: &'a Scene,
-        camera: &'a Camera,
-        tf: &'a TransferFunction,
-        options: &'a RenderOptions,
+        inputs: FrameInputs<'a>,
         cancel: Cancel<'a>,
         film: &'a mut Film,
     }
     impl<S: Schedule> VolumeVisitor for WithVolume<'_, S> {
         type Output = Option<u64>;
         fn visit<V: Volume>(self, volume: &V) -> Option<u64> {
+            let FrameInputs {
+                scene,
+                camera,
+                tf,
+                options,
+            } = self.inputs;
             let job = FrameJob {
-                ctx: self.plan.context(volume, self.scene, self.tf, self.options),
+                ctx: self.plan.context(volume, scene, tf, options),
                 plan: self.plan,
-                scene: self.scene,
-                camera: self.camera,
-                options: self.options,
+                scene,
+                camera,
+                options,
                 cancel: self.cancel,
             };
-            self.options.mode.visit(WithIntegrator {
+            options.mode.visit(WithIntegrator {
                 schedule: self.schedule,
                 job: &job,
                 film: self.film,
@@ -189,10 +188,7 @@ fn render_frame<S: Schedule>(
     let samples = scene.volume().visit(WithVolume {
         schedule,
         plan: &plan,
-        scene,
-        camera,
-        tf,
-        options,
+        inputs,
         cancel,
         film: &mut film,
     });

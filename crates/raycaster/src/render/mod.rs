@@ -95,6 +95,15 @@ pub trait Renderer: Send {
     }
 }
 
+/// `n`, or the number of cores when `n` is 0.
+pub(crate) fn resolve_threads(n: usize) -> usize {
+    if n == 0 {
+        std::thread::available_parallelism().map_or(1, |n| n.get())
+    } else {
+        n
+    }
+}
+
 /// When a frame in progress should stop: never, when a flag is raised, or
 /// when a generation counter moves on from the value the frame was started
 /// with. Cheap to copy and to check (one relaxed atomic load).

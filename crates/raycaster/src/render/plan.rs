@@ -7,9 +7,7 @@ use std::sync::Arc;
 use crate::accel::SkipGrid;
 use crate::camera::{Camera, CameraFrame, PixelRect};
 use crate::error::{Error, Result};
-use crate::integrator::{
-    FrameContext, Integrator, IntegratorVisitor, Occupancy, Phong, RenderMode,
-};
+use crate::integrator::{FrameContext, Integrator, IntegratorVisitor, Occupancy, Phong};
 use crate::scene::Scene;
 use crate::transfer::{TfLut, TransferFunction};
 use crate::volume::Volume;
@@ -22,7 +20,8 @@ struct PlanKey {
     scene: u64,
     tf: TransferFunction,
     step: u32,
-    mode: RenderMode,
+    occupancy: Occupancy,
+    /// The iso value's bits where the occupancy depends on it, else 0.
     iso: u32,
 }
 
@@ -41,19 +40,6 @@ impl PlanCache {
         step: f32,
         options: &RenderOptions,
     ) -> Arc<(TfLut, SkipGrid)> {
-        let key = PlanKey {
-            scene: scene.id(),
-            tf: tf.clone(),
-            step: step.to_bits(),
-            mode: options.mode,
-            iso: options.iso_value.to_bits(),
-        };
-        if let Some((k, v)) = &self.last
-            && *k == key
-        {
-            return v.clone();
-        }
-        let lut = TfLut::new(tf, step);
         struct OccupancyOf;
         impl IntegratorVisitor for OccupancyOf {
             type Output = Occupancy;
@@ -62,6 +48,22 @@ impl PlanCache {
             }
         }
         let occupancy = options.mode.visit(OccupancyOf);
+        let key = PlanKey {
+            scene: scene.id(),
+            tf: tf.clone(),
+            step: step.to_bits(),
+            occupancy,
+            iso: match occupancy {
+                Occupancy::IsoValue => options.iso_value.to_bits(),
+                Occupancy::Visible | Occupancy::Every => 0,
+            },
+        };
+        if let Some((k, v)) = &self.last
+            && *k == key
+        {
+            return v.clone();
+        }
+        let lut = TfLut::new(tf, step);
         let skip = occupancy.skip_grid(scene.macrocells(), &lut, options.iso_value);
         let v = Arc::new((lut, skip));
         self.last = Some((key, v.clone()));

@@ -36,7 +36,7 @@ impl TiledRenderer {
     /// A renderer with `threads` workers (0 = one per core) and square tiles
     /// of `tile` pixels.
     pub fn new(threads: usize, tile: u32) -> Result<Self> {
-        let threads = super::object::resolve_threads(threads);
+        let threads = super::resolve_threads(threads);
         let pool = rayon::ThreadPoolBuilder::new()
             .num_threads(threads)
             .thread_name(|i| format!("raycaster-tile-{i}"))

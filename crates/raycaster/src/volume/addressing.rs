@@ -66,7 +66,7 @@ impl AxisOrder {
 /// Rows: every layout stores the voxels of a row along one axis
 /// ([`Addressing::row_axis`]) in contiguous runs, which the value-range
 /// passes stream through ([`Addressing::row_runs`]).
-pub trait Addressing: Clone + Send + Sync + std::fmt::Debug + 'static {
+pub trait Addressing: Send + Sync + std::fmt::Debug + 'static {
     /// The run-time description of this layout.
     fn layout(&self) -> Layout;
 
@@ -279,12 +279,11 @@ pub struct Bricked {
     len: usize,
     /// Per axis, the storage offset contributed by a voxel coordinate (brick
     /// offset plus local offset), so an index is three table lookups and two
-    /// additions instead of three divisions. Shared, so that the typed view
-    /// a frame makes holds its own copy of the addressing cheaply.
-    offset: [std::sync::Arc<[usize]>; 3],
+    /// additions instead of three divisions.
+    offset: [Vec<usize>; 3],
     /// Per z, the last z of the contiguous run it starts (the end of its
     /// brick along z), so walking a row needs no division.
-    run_end: std::sync::Arc<[u32]>,
+    run_end: Vec<u32>,
     neighbour: [usize; 3],
 }
 

@@ -66,9 +66,8 @@ impl AnyVolume {
 
     /// One array of samples in `order`.
     pub fn linear(grid: Grid, storage: Storage, order: AxisOrder) -> Result<Self> {
-        let addressing = Linear::new(grid.dims, order).ok_or_else(|| Error::TooLarge {
-            path: Default::default(),
-            what: format!("{} voxels", grid.voxel_count()),
+        let addressing = Linear::new(grid.dims, order).ok_or_else(|| {
+            Error::InvalidVolume(format!("{} voxels: too large", grid.voxel_count()))
         })?;
         Self::new(grid, storage, AnyAddressing::Linear(addressing))
     }
@@ -104,7 +103,9 @@ impl AnyVolume {
         mut f: impl FnMut(UVec3) -> S,
     ) -> Result<Self> {
         let bricks = BrickGrid::new(grid.dims, side)?;
-        let len = bricks.total_len().unwrap_or(u64::MAX);
+        let len = bricks.total_len().ok_or_else(|| {
+            Error::InvalidVolume(format!("{} in bricks of {side}: too large", grid.dims))
+        })?;
         let v = (0..len)
             .map(|i| bricks.voxel_at(i, grid.dims).map_or(S::zeroed(), &mut f))
             .collect::<Vec<S>>();
@@ -153,13 +154,12 @@ impl AnyVolume {
             fn visit<S: Sample>(self) -> T::Output {
                 let v = self.volume;
                 let data = v.storage.as_slice::<S>();
-                let kind = v.storage.kind();
                 match &v.addressing {
                     AnyAddressing::Linear(a) => {
-                        self.visitor.visit(&GridVolume::new(&v.grid, data, a, kind))
+                        self.visitor.visit(&GridVolume::new(&v.grid, data, a))
                     }
                     AnyAddressing::Bricked(a) => {
-                        self.visitor.visit(&GridVolume::new(&v.grid, data, a, kind))
+                        self.visitor.visit(&GridVolume::new(&v.grid, data, a))
                     }
                 }
             }

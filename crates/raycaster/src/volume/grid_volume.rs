@@ -3,23 +3,19 @@
 
 use glam::{UVec3, Vec3};
 
-use super::addressing::{Addressing, Layout, rows_last};
+use super::addressing::{Addressing, rows_last};
 use super::ranges::{cell_value_ranges_by_rows, fold_range};
 use super::{CellPos, Corners, Grid, Volume, Wings, load_corners, load_wings, split_coord};
 use crate::sample::Sample;
-use crate::storage::StorageKind;
 
 /// A typed view of a volume's samples: the grid, the sample array and its
 /// addressing, with the constants of the hot loop copied in. Cheap to make;
 /// [`AnyVolume::visit`](super::AnyVolume::visit) makes one per frame.
-#[derive(Debug, Clone)]
+#[derive(Debug, Clone, Copy)]
 pub struct GridVolume<'a, S: Sample, A: Addressing> {
     grid: &'a Grid,
     data: &'a [S],
-    /// A copy: the hot loop reads strides from the view itself rather than
-    /// through one more pointer.
-    addr: A,
-    kind: StorageKind,
+    addr: &'a A,
     stride: [usize; 3],
     max_coord: Vec3,
     last: UVec3,
@@ -29,7 +25,7 @@ impl<'a, S: Sample, A: Addressing> GridVolume<'a, S, A> {
     /// A view of `data` laid out by `addr` on `grid`. `data` must hold
     /// exactly `addr.storage_len()` samples (checked: every later index is
     /// bounded by it).
-    pub fn new(grid: &'a Grid, data: &'a [S], addr: &'a A, kind: StorageKind) -> Self {
+    pub fn new(grid: &'a Grid, data: &'a [S], addr: &'a A) -> Self {
         assert_eq!(
             data.len(),
             addr.storage_len(),
@@ -38,8 +34,7 @@ impl<'a, S: Sample, A: Addressing> GridVolume<'a, S, A> {
         GridVolume {
             grid,
             data,
-            addr: addr.clone(),
-            kind,
+            addr,
             stride: addr.neighbour_strides(),
             max_coord: grid.max_coord(),
             last: grid.last_cell(),
@@ -52,8 +47,8 @@ impl<'a, S: Sample, A: Addressing> GridVolume<'a, S, A> {
     }
 
     /// The addressing.
-    pub fn addressing(&self) -> &A {
-        &self.addr
+    pub fn addressing(&self) -> &'a A {
+        self.addr
     }
 }
 
@@ -62,14 +57,6 @@ impl<S: Sample, A: Addressing> Volume for GridVolume<'_, S, A> {
 
     fn grid(&self) -> &Grid {
         self.grid
-    }
-
-    fn layout(&self) -> Layout {
-        self.addr.layout()
-    }
-
-    fn storage_kind(&self) -> StorageKind {
-        self.kind
     }
 
     fn voxel(&self, v: UVec3) -> S {

@@ -27,7 +27,6 @@ pub(crate) use ranges::fold_range_f32;
 use glam::{UVec3, Vec3};
 
 use crate::sample::Sample;
-use crate::storage::StorageKind;
 
 /// A volume that renderers can sample.
 ///
@@ -41,12 +40,6 @@ pub trait Volume: Send + Sync {
 
     /// Dimensions, spacing and origin.
     fn grid(&self) -> &Grid;
-
-    /// Memory order of the samples.
-    fn layout(&self) -> Layout;
-
-    /// RAM or memory-mapped.
-    fn storage_kind(&self) -> StorageKind;
 
     /// The value of one voxel. `v` must be inside the grid (panics otherwise).
     fn voxel(&self, v: UVec3) -> Self::Sample;

@@ -27,8 +27,8 @@
 //!    too) and appended to the queue of every tile its rectangle touches;
 //!    tiles cover only the screen rectangle of the volume.
 //! 5. **Tasks.** A task is (tile, next brick of its queue) and travels with
-//!    the tile's buffers — per pixel the ray's [`RaySegment`] and
-//!    [`RayState`] — through one `crossbeam-channel` queue that all render
+//!    the tile's buffers — per pixel the ray's `RaySegment` and its
+//!    integrator state — through one `crossbeam-channel` queue that all render
 //!    threads take from: owning the message is owning the tile, so there is
 //!    no shared mutable state and no `unsafe` (no raw tile pointers shared
 //!    through `UnsafeCell`). A render thread integrates the
@@ -115,7 +115,7 @@ use super::film::Film;
 use super::plan::RenderOptions;
 use crate::accel::SkipGrid;
 use crate::error::{Error, Result};
-use crate::integrator::{Integrator, IntegratorVisitor, RenderMode};
+use crate::integrator::Integrator;
 use crate::scene::Scene;
 use crate::transfer::TfLut;
 use crate::volume::{Layout, Volume};
@@ -173,7 +173,7 @@ impl ObjectConfig {
     /// their own tasks, with the default tile and brick sizes.
     pub fn with_threads(total: usize) -> Self {
         ObjectConfig {
-            render_threads: resolve_threads(total),
+            render_threads: super::resolve_threads(total),
             composite_threads: 0,
             tile: Self::DEFAULT_TILE,
             brick: 0,
@@ -181,24 +181,14 @@ impl ObjectConfig {
         }
     }
 
-    /// The brick side used for a volume of `layout` and `dims` in `mode`.
+    /// The brick side used for a volume of `layout` and `dims`.
     ///
-    /// With `brick` 0 (automatic), MIP and isosurface frames use one brick
-    /// spanning the volume — the renderer then schedules whole rays per tile,
-    /// like the tiled renderer — because splitting their rays only adds
-    /// work: neither can drop bricks (see the [module docs](crate::render::object)).
-    pub fn brick_side(&self, layout: Layout, mode: RenderMode, dims: UVec3) -> u32 {
-        struct SplitsRays;
-        impl IntegratorVisitor for SplitsRays {
-            type Output = bool;
-            fn visit<I: Integrator>(self) -> bool {
-                I::SPLITS_RAYS
-            }
-        }
-        self.side_for(layout, mode.visit(SplitsRays), dims)
-    }
-
-    fn side_for(&self, layout: Layout, splits_rays: bool, dims: UVec3) -> u32 {
+    /// With `brick` 0 (automatic), modes whose rays do not pay to split
+    /// (`splits_rays` false: MIP and isosurface) use one brick spanning the
+    /// volume — the renderer then schedules whole rays per tile, like the
+    /// tiled renderer — because neither can drop bricks (see the
+    /// [module docs](crate::render::object)).
+    pub fn brick_side(&self, layout: Layout, splits_rays: bool, dims: UVec3) -> u32 {
         if self.brick > 0 {
             return self.brick;
         }
@@ -219,15 +209,6 @@ impl ObjectConfig {
 impl Default for ObjectConfig {
     fn default() -> Self {
         Self::with_threads(0)
-    }
-}
-
-/// `n`, or the number of cores when `n` is 0.
-pub(crate) fn resolve_threads(n: usize) -> usize {
-    if n == 0 {
-        std::thread::available_parallelism().map_or(1, |n| n.get())
-    } else {
-        n
     }
 }
 
@@ -284,9 +265,9 @@ impl Bricks {
         prepared: &Arc<(TfLut, SkipGrid)>,
         options: &RenderOptions,
     ) -> Arc<BrickSet> {
-        let side = self
-            .config
-            .side_for(scene.volume().layout(), I::SPLITS_RAYS, scene.grid().dims);
+        let side =
+            self.config
+                .brick_side(scene.volume().layout(), I::SPLITS_RAYS, scene.grid().dims);
         let key = BrickKey {
             scene: scene.id(),
             side,

@@ -13,7 +13,6 @@ use super::bricks::sample_range;
 use super::footprint::intersect;
 use super::work::FrameWork;
 use crate::integrator::{Integrator, RaySegment, Span};
-use crate::render::Cancel;
 use crate::render::driver::FrameJob;
 use crate::render::film::Film;
 use crate::volume::Volume;
@@ -63,7 +62,6 @@ struct Shared<'a, V: Volume, I> {
     job: &'a FrameJob<'a, V>,
     film: &'a Film,
     work: &'a FrameWork,
-    cancel: Cancel<'a>,
     order: TaskOrder,
     /// Tiles not finished yet.
     remaining: AtomicUsize,
@@ -115,7 +113,7 @@ impl<V: Volume, I: Integrator> Shared<'_, V, I> {
         for j in r.y0..r.y1 {
             // A task can take a while: look for cancellation per row.
             // The tile is left half-done, but a cancelled frame is dropped.
-            if self.cancel.is_cancelled() {
+            if self.job.cancel.is_cancelled() {
                 return;
             }
             let row = (j - t.y0) as usize * tw;
@@ -171,7 +169,7 @@ impl<V: Volume, I: Integrator> Shared<'_, V, I> {
     }
 
     fn stopped(&self) -> bool {
-        self.aborted.load(Ordering::Relaxed) || self.cancel.is_cancelled()
+        self.aborted.load(Ordering::Relaxed) || self.job.cancel.is_cancelled()
     }
 
     /// A render thread: takes tasks until the frame ends.
@@ -253,13 +251,11 @@ pub(super) fn run_frame<V: Volume, I: Integrator>(
     order: TaskOrder,
 ) -> Option<(Vec<DoneTile>, u64)> {
     let (render_threads, composite_threads) = threads;
-    let cancel = job.cancel;
     let (stop_tx, stop_rx) = crossbeam_channel::bounded(0);
     let shared = Shared::<V, I> {
         job,
         film,
         work,
-        cancel,
         order,
         remaining: AtomicUsize::new(0),
         aborted: AtomicBool::new(false),
@@ -323,7 +319,7 @@ pub(super) fn run_frame<V: Volume, I: Integrator>(
         }
         outs
     });
-    if shared.aborted.load(Ordering::Relaxed) || cancel.is_cancelled() {
+    if shared.aborted.load(Ordering::Relaxed) || job.cancel.is_cancelled() {
         return None;
     }
     let mut samples = 0;
