@@ -96,12 +96,27 @@ impl Storage {
         let bytes = len.checked_mul(sample_type.size()).ok_or_else(too_large)?;
         let start = usize::try_from(offset).map_err(|_| too_large())?;
         let end = start.checked_add(bytes).ok_or_else(too_large)?;
-        let aligned = |p: *const u8| (p as usize).is_multiple_of(sample_type.size());
+        let file_len = file.metadata().map_err(|e| Error::io(path, e))?.len();
+        if file_len < end as u64 {
+            return Err(Error::format(
+                path,
+                crate::error::FormatError::WrongLength {
+                    expected: end as u64,
+                    found: file_len,
+                    detail: format!("{offset} bytes + {len} samples of {sample_type}"),
+                },
+            ));
+        }
         let storage = |owner, ptr| Storage {
             owner,
             ptr,
             len,
             sample_type,
+        };
+        let in_ram = |fill: &mut dyn FnMut(&mut [u8]) -> std::io::Result<()>| {
+            let map = read_only_block(bytes, fill).map_err(|e| Error::io(path, e))?;
+            let ptr = map.as_ptr();
+            Ok(storage(Owner::Anonymous(map), ptr))
         };
         match mode {
             LoadMode::Map => {
@@ -112,43 +127,30 @@ impl Storage {
                 // every memory-mapped reader, and the alternative (copying tens
                 // of GB) defeats the purpose.
                 let map = unsafe { memmap2::Mmap::map(&file) }.map_err(|e| Error::io(path, e))?;
-                if map.len() < end {
-                    return Err(Error::format(
-                        path,
-                        crate::error::FormatError::WrongLength {
-                            expected: end as u64,
-                            found: map.len() as u64,
-                            detail: format!("{offset} bytes + {len} samples of {sample_type}"),
-                        },
-                    ));
-                }
+                // (`get`: the file may have shrunk since its length was read.)
+                let Some(mapped) = map.get(start..end) else {
+                    return Err(Error::io(path, std::io::ErrorKind::UnexpectedEof.into()));
+                };
                 #[cfg(unix)]
                 let _ = map.advise(memmap2::Advice::WillNeed);
-                let ptr = map[start..end].as_ptr();
-                if aligned(ptr) {
+                let ptr = mapped.as_ptr();
+                if (ptr as usize).is_multiple_of(sample_type.size()) {
                     return Ok(storage(Owner::Mapped(map), ptr));
                 }
                 // Misaligned for the type: copy once into page-aligned RAM
                 // rather than read unaligned in the hot loop.
-                let mut block = anonymous_block(bytes).map_err(|e| Error::io(path, e))?;
-                block[..bytes].copy_from_slice(&map[start..end]);
-                let map = block.make_read_only().map_err(|e| Error::io(path, e))?;
-                let ptr = map.as_ptr();
-                Ok(storage(Owner::Anonymous(map), ptr))
+                in_ram(&mut |block| {
+                    block.copy_from_slice(mapped);
+                    Ok(())
+                })
             }
             LoadMode::Ram => {
                 use std::io::{Read, Seek, SeekFrom};
                 let mut f = file;
-                f.seek(SeekFrom::Start(offset))
-                    .map_err(|e| Error::io(path, e))?;
-                let mut block = anonymous_block(bytes).map_err(|e| Error::io(path, e))?;
-                f.read_exact(&mut block[..bytes])
-                    .map_err(|e| Error::io(path, e))?;
-                let map = block.make_read_only().map_err(|e| Error::io(path, e))?;
-                let ptr = map.as_ptr();
-                // Anonymous maps are page-aligned, so aligned for every type.
-                debug_assert!(aligned(ptr));
-                Ok(storage(Owner::Anonymous(map), ptr))
+                in_ram(&mut |block| {
+                    f.seek(SeekFrom::Start(offset))?;
+                    f.read_exact(block)
+                })
             }
         }
     }
@@ -209,14 +211,20 @@ impl std::fmt::Debug for Storage {
     }
 }
 
-/// Anonymous memory for `bytes` bytes (at least one page), backed by
-/// transparent huge pages where the kernel allows: a volume read into RAM is
-/// sampled at random, and 2 MB pages cut the TLB misses of such access.
-fn anonymous_block(bytes: usize) -> std::io::Result<memmap2::MmapMut> {
-    let block = memmap2::MmapMut::map_anon(bytes.max(1))?;
+/// `bytes` bytes of anonymous memory (at least one page, so aligned for
+/// every sample type) filled by `fill`, then made read-only. The memory is
+/// backed by transparent huge pages where the kernel allows: a volume read
+/// into RAM is sampled at random, and 2 MB pages cut the TLB misses of such
+/// access.
+fn read_only_block(
+    bytes: usize,
+    fill: &mut dyn FnMut(&mut [u8]) -> std::io::Result<()>,
+) -> std::io::Result<memmap2::Mmap> {
+    let mut block = memmap2::MmapMut::map_anon(bytes.max(1))?;
     #[cfg(target_os = "linux")]
     let _ = block.advise(memmap2::Advice::HugePage);
-    Ok(block)
+    fill(&mut block[..bytes])?;
+    block.make_read_only()
 }
 
 #[cfg(test)]
@@ -263,8 +271,14 @@ mod tests {
             .collect();
         let want: u64 = data[3..9_003].iter().map(|&v| v as u64).sum();
         assert!(sums.iter().all(|&s| s == want));
-        // Too short a file is an error, not a bad read.
-        assert!(Storage::open(&path, 9_999, SampleType::U8, 2, LoadMode::Map).is_err());
+        // Too short a file is a length error naming the file, mapped or read.
+        for mode in [LoadMode::Map, LoadMode::Ram] {
+            let e = Storage::open(&path, 9_999, SampleType::U8, 2, mode).unwrap_err();
+            assert!(
+                matches!(e, Error::Format { .. }) && e.to_string().contains("bytes.bin"),
+                "{mode:?}: {e}"
+            );
+        }
         std::fs::remove_dir_all(&dir).ok();
     }
 }

@@ -35,7 +35,7 @@ pub fn write_atomically(
 /// The temporary name used while writing `path`: `.NAME.partial-PID` in the
 /// same directory (hidden, and unique per process so that two programs
 /// writing the same name do not share a temporary file).
-pub fn temp_path_for(path: &Path) -> PathBuf {
+fn temp_path_for(path: &Path) -> PathBuf {
     let name = path
         .file_name()
         .map(|n| n.to_string_lossy().into_owned())

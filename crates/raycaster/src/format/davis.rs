@@ -71,7 +71,7 @@ impl DavisHeader {
 
 /// True when `head` parses as a UC Davis header whose dimensions are non-zero
 /// and whose implied length is `file_len`.
-pub fn header_matches(head: &[u8], file_len: u64) -> bool {
+fn header_matches(head: &[u8], file_len: u64) -> bool {
     DavisHeader::parse(head)
         .is_some_and(|h| h.dims.min_element() > 0 && h.file_len() == Some(file_len))
 }
@@ -79,7 +79,7 @@ pub fn header_matches(head: &[u8], file_len: u64) -> bool {
 /// True when `head` parses as a UC Davis header with sensible fields
 /// (dimensions 1..=65536, border below 256, finite positive cell sizes),
 /// whatever the file's length.
-pub fn header_plausible(head: &[u8]) -> bool {
+fn header_plausible(head: &[u8]) -> bool {
     DavisHeader::parse(head).is_some_and(|h| {
         h.dims.min_element() > 0
             && h.dims.max_element() <= 1 << 16

@@ -30,9 +30,7 @@ pub const HEADER_LEN: usize = 348;
 /// True when `head` starts a NIfTI-1 header (uncompressed) in either byte
 /// order.
 pub fn looks_like(head: &[u8]) -> bool {
-    head.len() >= HEADER_LEN
-        && (head[..4] == 348i32.to_le_bytes() || head[..4] == 348i32.to_be_bytes())
-        && matches!(&head[344..348], b"n+1\0" | b"ni1\0")
+    NiftiHeader::parse(head).is_ok()
 }
 
 /// The fields of a NIfTI-1 header that matter here.
@@ -304,12 +302,12 @@ fn open(path: &Path, mode: LoadMode, progress: Option<&super::Progress>) -> Resu
         let offset = h.vox_offset as u64;
         let volume = if gz {
             // The stream is past the header already.
-            let data = GzipSamples {
+            let data = samples::Stream {
                 offset,
                 skip: offset.saturating_sub(HEADER_LEN as u64),
-                compressed: file_bytes,
+                ..samples::Stream::gzip(file_bytes)
             };
-            data.decode(path, stream, &layout, rescale)?
+            samples::from_reader(path, stream, &layout, rescale, data)?
         } else {
             samples::from_file(path, offset, &layout, rescale, mode, false)?
         };
@@ -324,12 +322,12 @@ fn open(path: &Path, mode: LoadMode, progress: Option<&super::Progress>) -> Resu
             let gzip = Gzip::get(&data_path)?;
             let f = std::fs::File::open(&data_path).map_err(|e| Error::io(&data_path, e))?;
             let input = gzip.decoder(super::ProgressReader::new(f, data_bytes, progress));
-            let data = GzipSamples {
+            let data = samples::Stream {
                 offset,
                 skip: offset,
-                compressed: data_bytes,
+                ..samples::Stream::gzip(data_bytes)
             };
-            data.decode(&data_path, input, &layout, rescale)?
+            samples::from_reader(&data_path, input, &layout, rescale, data)?
         } else {
             samples::from_file(&data_path, offset, &layout, rescale, mode, false)?
         };
@@ -345,37 +343,6 @@ fn open(path: &Path, mode: LoadMode, progress: Option<&super::Progress>) -> Resu
     info.orientation = h.orientation();
     info.notes = notes;
     Ok(Opened { volume, info })
-}
-
-/// Where the samples start in a decompressed stream.
-struct GzipSamples {
-    /// Their offset in the decompressed file (named in length errors).
-    offset: u64,
-    /// Bytes of the stream to skip before them.
-    skip: u64,
-    /// Bytes of the compressed file, which bound what it can inflate to.
-    compressed: u64,
-}
-
-impl GzipSamples {
-    /// Skips to the samples of `stream` (decompressed data of `path`) and
-    /// decodes exactly the first volume.
-    fn decode(
-        &self,
-        path: &Path,
-        mut stream: Box<dyn Read + '_>,
-        layout: &SampleLayout,
-        rescale: Option<Rescale>,
-    ) -> Result<crate::volume::AnyVolume> {
-        std::io::copy(&mut stream.by_ref().take(self.skip), &mut std::io::sink())
-            .map_err(|e| invalid(path, format!("gzip data is corrupt or truncated ({e})")))?;
-        let stream_info = samples::Stream {
-            offset: self.offset,
-            max_bytes: Some(gzip::max_inflated(self.compressed)),
-            compression: Some("gzip"),
-        };
-        samples::from_reader(path, stream, layout, rescale, stream_info)
-    }
 }
 
 /// The `.img` file of a `.hdr` (same stem, also `.img.gz`).

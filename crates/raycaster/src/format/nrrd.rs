@@ -18,7 +18,7 @@ use std::path::{Path, PathBuf};
 
 use glam::{UVec3, Vec3};
 
-use super::gzip::{self, Gzip};
+use super::gzip::Gzip;
 use super::samples::{self, Endian, SampleLayout};
 use super::{FileFormat, Opened, VolumeInfo};
 use crate::error::{Error, FormatError, Result};
@@ -391,11 +391,7 @@ fn open(path: &Path, mode: LoadMode, progress: Option<&super::Progress>) -> Resu
                 .map_err(|e| Error::io(data, e))?;
             let compressed = data_len.saturating_sub(start);
             let counted = super::ProgressReader::new(f, compressed, progress);
-            let stream = samples::Stream {
-                offset: 0,
-                max_bytes: Some(gzip::max_inflated(compressed)),
-                compression: Some("gzip"),
-            };
+            let stream = samples::Stream::gzip(compressed);
             samples::from_reader(data, gzip.decoder(counted), &layout, None, stream)?
         }
     };

@@ -186,6 +186,9 @@ pub struct Stream {
     /// Bytes of the file (or decompressed stream) before the samples,
     /// added to the counts in a length error.
     pub offset: u64,
+    /// Bytes of the stream to read and drop before the samples (those of
+    /// the `offset` that the reader has not consumed yet).
+    pub skip: u64,
     /// The most bytes the stream can yield (gzip expands at most about
     /// 1032:1): a header that promises more is rejected before the memory
     /// for it is allocated.
@@ -195,9 +198,33 @@ pub struct Stream {
     pub compression: Option<&'static str>,
 }
 
-/// Builds a volume in RAM from the sample bytes that `reader` yields,
-/// exactly as the file stores them (a file at the samples' offset, a gzip
-/// decoder, a slice): read straight into the typed array, then byte-swapped
+impl Stream {
+    /// A gzip stream inflated from `compressed` bytes on disk, its samples
+    /// at its start (set `offset` and `skip` for others).
+    pub(crate) fn gzip(compressed: u64) -> Stream {
+        Stream {
+            max_bytes: Some(super::gzip::max_inflated(compressed)),
+            compression: Some("gzip"),
+            ..Stream::default()
+        }
+    }
+
+    /// The error for a failed read of this stream from `path`: corrupt data
+    /// for a compressed stream, else what the operating system said.
+    fn read_error(&self, path: &Path, e: std::io::Error) -> Error {
+        match self.compression {
+            Some(c) => Error::format(
+                path,
+                FormatError::Invalid(format!("{c} data is corrupt or truncated ({e})")),
+            ),
+            None => Error::io(path, e),
+        }
+    }
+}
+
+/// Builds a volume in RAM from the sample bytes that `reader` yields after
+/// [`Stream::skip`] bytes, exactly as the file stores them (a file at the
+/// samples' offset, a gzip decoder, a slice): read straight into the typed array, then byte-swapped
 /// in place and rescaled, so a decode needs no second copy of the data.
 pub fn from_reader(
     path: &Path,
@@ -235,6 +262,9 @@ pub fn from_reader(
             )),
         ));
     }
+    use std::io::Read;
+    std::io::copy(&mut (&mut reader).take(stream.skip), &mut std::io::sink())
+        .map_err(|e| stream.read_error(path, e))?;
     let reader: &mut dyn std::io::Read = &mut reader;
     layout.sample.visit(ReadVisitor {
         path,
@@ -356,16 +386,7 @@ impl SampleTypeVisitor for ReadVisitor<'_> {
                 Ok(0) => break,
                 Ok(n) => filled += n,
                 Err(e) if e.kind() == std::io::ErrorKind::Interrupted => {}
-                Err(e) if self.stream.compression.is_some() => {
-                    let compression = self.stream.compression.unwrap_or("compressed");
-                    return Err(Error::format(
-                        path,
-                        FormatError::Invalid(format!(
-                            "{compression} data is corrupt or truncated ({e})"
-                        )),
-                    ));
-                }
-                Err(e) => return Err(Error::io(path, e)),
+                Err(e) => return Err(self.stream.read_error(path, e)),
             }
         }
         if filled < buf.len() {

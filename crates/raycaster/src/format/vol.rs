@@ -10,8 +10,9 @@ use glam::{UVec3, Vec3};
 use nom::Parser;
 use nom::number::complete::{le_f32, le_u32, u8 as byte};
 
+use super::samples::{Endian, write_samples};
 use crate::error::{Error, FormatError, Result};
-use crate::sample::SampleType;
+use crate::sample::{Sample, SampleType};
 use crate::storage::{LoadMode, Storage};
 use crate::volume::{AnyVolume, AxisOrder, BrickGrid, Grid, Volume, VolumeVisitor};
 
@@ -156,11 +157,13 @@ impl VolHeader {
     fn length_detail(&self) -> String {
         let d = self.dims;
         match self.layout {
-            VolLayout::Linear => format!("26-byte header + {}x{}x{} samples", d.x, d.y, d.z),
+            VolLayout::Linear => {
+                format!("{HEADER_LEN}-byte header + {}x{}x{} samples", d.x, d.y, d.z)
+            }
             VolLayout::Bricked { side } => {
                 let n = BrickGrid::new(d, side as u32).map_or(UVec3::ZERO, |b| b.count);
                 format!(
-                    "26-byte header + {}x{}x{} bricks of {side}^3 samples",
+                    "{HEADER_LEN}-byte header + {}x{}x{} bricks of {side}^3 samples",
                     n.x, n.y, n.z
                 )
             }
@@ -220,7 +223,7 @@ fn open_read_header(path: &Path, mode: LoadMode) -> Result<(AnyVolume, VolHeader
 }
 
 /// True when `head` is a valid header whose implied length is `file_len`.
-pub fn header_matches(head: &[u8], file_len: u64) -> bool {
+fn header_matches(head: &[u8], file_len: u64) -> bool {
     VolHeader::parse(head).is_ok_and(|h| h.file_len() == Ok(file_len))
 }
 
@@ -250,7 +253,7 @@ impl super::Reader for VolReader {
             dims: header.dims,
             spacing: header.spacing,
             sample: SampleType::U8,
-            endian: super::Endian::Little,
+            endian: Endian::Little,
             order: AxisOrder::ZFast,
         };
         let encoding = match header.layout {
@@ -291,46 +294,38 @@ pub fn write(path: &Path, volume: &AnyVolume, layout: VolLayout) -> Result<()> {
                 .map_err(|_| Error::format(path, FormatError::BadBrickSize(side)))?,
         ),
     };
-    struct Samples<'w, W> {
-        w: &'w mut W,
-        bricks: Option<BrickGrid>,
+    /// Writes the samples brick by brick, 0 past the grid's edge.
+    struct Bricks<'w> {
+        w: &'w mut dyn Write,
+        bricks: BrickGrid,
     }
-    impl<W: Write> VolumeVisitor for Samples<'_, W> {
+    impl VolumeVisitor for Bricks<'_> {
         type Output = std::io::Result<()>;
         fn visit<V: Volume>(self, volume: &V) -> std::io::Result<()> {
-            use crate::sample::Sample;
-            let byte = |v: UVec3| volume.voxel(v).to_f32() as u8;
+            let Bricks { w, bricks } = self;
             let d = volume.grid().dims;
-            match self.bricks {
-                None => {
-                    let mut row = Vec::with_capacity(d.z as usize);
-                    for x in 0..d.x {
-                        for y in 0..d.y {
-                            row.clear();
-                            row.extend((0..d.z).map(|z| byte(UVec3::new(x, y, z))));
-                            self.w.write_all(&row)?;
-                        }
+            let len = bricks.brick_len();
+            let total = bricks.total_len().unwrap_or(0);
+            let mut buf = Vec::with_capacity(len as usize);
+            for b in 0..total / len {
+                buf.clear();
+                for i in b * len..(b + 1) * len {
+                    match bricks.voxel_at(i, d) {
+                        Some(v) => volume.voxel(v).encode(Endian::Little, &mut buf),
+                        None => buf.push(0),
                     }
                 }
-                Some(bricks) => {
-                    let len = bricks.brick_len();
-                    let total = bricks.total_len().unwrap_or(0);
-                    let mut buf = Vec::with_capacity(len as usize);
-                    for b in 0..total / len {
-                        buf.clear();
-                        buf.extend(
-                            (b * len..(b + 1) * len).map(|i| bricks.voxel_at(i, d).map_or(0, byte)),
-                        );
-                        self.w.write_all(&buf)?;
-                    }
-                }
+                w.write_all(&buf)?;
             }
             Ok(())
         }
     }
     super::atomic::write_atomically(path, |w| {
         w.write_all(&header.to_bytes())?;
-        volume.visit(Samples { w, bricks })
+        match bricks {
+            None => write_samples(w, volume, AxisOrder::ZFast, Endian::Little),
+            Some(bricks) => volume.visit(Bricks { w, bricks }),
+        }
     })
 }
 

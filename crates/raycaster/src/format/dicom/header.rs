@@ -93,13 +93,12 @@ fn meta_transfer_syntax(path: &Path) -> Option<String> {
     use std::io::{Read, Seek, SeekFrom};
     let mut f = std::fs::File::open(path).ok()?;
     let mut head = [0u8; 132];
-    let n = f.read(&mut head).ok()?;
-    let start = if n >= 132 && &head[128..132] == b"DICM" {
-        128
-    } else {
+    f.read_exact(&mut head).ok()?;
+    if &head[128..] != b"DICM" {
         return None;
-    };
-    f.seek(SeekFrom::Start(start)).ok()?;
+    }
+    // The meta group is read from its `DICM` marker.
+    f.seek(SeekFrom::Start(128)).ok()?;
     let meta = dicom_object::FileMetaTable::from_reader(std::io::BufReader::new(f)).ok()?;
     Some(meta.transfer_syntax().to_string())
 }
