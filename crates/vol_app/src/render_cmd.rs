@@ -92,19 +92,16 @@ pub fn run(args: &RenderArgs) -> Result<(), Error> {
         return Err("--background channels must be in 0..1".into());
     }
 
-    let threads = args.threads as usize;
-    let mut renderer: Box<dyn Renderer> = match args.renderer {
+    let mut renderer: AnyRenderer = match args.renderer {
         RendererKind::Serial => Box::new(SerialRenderer::new()),
         RendererKind::Tiles => Box::new(TiledRenderer::new(
-            threads,
+            args.threads as usize,
             args.tile.unwrap_or(TiledRenderer::DEFAULT_TILE),
         )?),
         RendererKind::Object => {
-            let total = if threads == 0 {
-                std::thread::available_parallelism().map_or(1, |n| n.get())
-            } else {
-                threads
-            };
+            // The library's defaults, `--threads 0` resolved to the cores.
+            let defaults = ObjectConfig::with_threads(args.threads as usize);
+            let total = defaults.render_threads;
             let composite = args.composite_threads as usize;
             if composite >= total {
                 return Err(format!(
@@ -115,13 +112,13 @@ pub fn run(args: &RenderArgs) -> Result<(), Error> {
             Box::new(ObjectRenderer::with_config(ObjectConfig {
                 render_threads: total - composite,
                 composite_threads: composite,
-                tile: args.tile.unwrap_or(ObjectConfig::DEFAULT_TILE),
-                brick: args.brick.unwrap_or(0),
+                tile: args.tile.unwrap_or(defaults.tile),
+                brick: args.brick.unwrap_or(defaults.brick),
                 order: args.task_order,
             })?)
         }
     };
-    let frames = render_repeated(
+    let (last, times) = render_repeated(
         renderer.as_mut(),
         &scene,
         &camera,
@@ -130,7 +127,6 @@ pub fn run(args: &RenderArgs) -> Result<(), Error> {
         args.repeat,
     )?;
     let (name, threads) = (renderer.name(), renderer.threads());
-    let (last, times) = frames;
 
     let out = match (&args.out, args.stats) {
         (Some(p), _) => Some(p.clone()),

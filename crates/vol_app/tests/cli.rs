@@ -195,6 +195,43 @@ fn bad_vol_files_give_one_line_errors_naming_the_file() {
 }
 
 #[test]
+fn object_renderer_threads_split_into_render_and_composite() {
+    let dir = TempDir::new("composite");
+    let file = ball_file(&dir, VolLayout::Linear);
+    let stats_threads = |threads: &str, composite: &str| {
+        let out = run_ok(vol_app_on("render", &file).args([
+            "--size",
+            "16x16",
+            "--stats",
+            "--renderer",
+            "object",
+            "--threads",
+            threads,
+            "--composite-threads",
+            composite,
+        ]));
+        let v: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
+        v["threads"].as_u64().unwrap()
+    };
+    // The threads in all, whichever of them only composite.
+    assert_eq!(stats_threads("3", "1"), 3);
+    assert_eq!(stats_threads("2", "0"), 2);
+    // 0: one per core.
+    let cores = std::thread::available_parallelism().map_or(1, |n| n.get());
+    assert_eq!(stats_threads("0", "0"), cores as u64);
+    let out = output(vol_app_on("render", &file).args([
+        "--renderer",
+        "object",
+        "--threads",
+        "2",
+        "--composite-threads",
+        "2",
+        "--stats",
+    ]));
+    assert_one_line_error(&out, "leaves no render thread of --threads 2");
+}
+
+#[test]
 fn bad_arguments_give_one_line_errors() {
     let dir = TempDir::new("args");
     let file = ball_file(&dir, VolLayout::Linear);
