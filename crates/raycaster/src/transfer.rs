@@ -10,6 +10,7 @@
 
 use std::path::Path;
 
+use crate::simd::{Isa, LANES};
 use glam::{Vec3, Vec4};
 use serde::{Deserialize, Serialize};
 
@@ -301,6 +302,10 @@ pub struct TfLut {
     entries: Vec<Vec4>,
     /// Per interval: evaluate exactly instead of from the table.
     exact: Vec<bool>,
+    /// Per interval: 0 when every value in it is transparent by the table,
+    /// non-zero otherwise (and for exact intervals), for
+    /// [`TfLut::visible_lanes`].
+    keys: Vec<f32>,
     /// Prefix counts of intervals that hold a visible value, for [`TfLut::any_visible`].
     visible_prefix: Vec<u32>,
     tf: TransferFunction,
@@ -356,6 +361,13 @@ impl TfLut {
                 || (linear && entries[j + 1].w > 0.0)
                 || inner.iter().any(|p| p.opacity > 0.0);
         }
+        let keys = (0..intervals)
+            .map(|j| match (exact[j], linear) {
+                (true, _) => -1.0,
+                (false, true) => entries[j].w.max(entries[j + 1].w),
+                (false, false) => entries[j].w,
+            })
+            .collect();
         let mut visible_prefix = Vec::with_capacity(intervals + 1);
         let mut count = 0u32;
         visible_prefix.push(0);
@@ -367,6 +379,7 @@ impl TfLut {
         TfLut {
             entries,
             exact,
+            keys,
             visible_prefix,
             tf: tf.clone(),
             lo,
@@ -402,7 +415,33 @@ impl TfLut {
     /// Premultiplied, step-corrected `(α·r, α·g, α·b, α)` at value `v`.
     #[inline(always)]
     pub fn lookup(&self, v: f32) -> Vec4 {
-        let x = self.position(v);
+        self.lookup_at(self.position(v), v)
+    }
+
+    /// The table positions of the values `v`, computed lane-wise (the part
+    /// of [`TfLut::lookup`] that vectorises), and a mask with bit `l` set
+    /// when `v[l]` may have a non-zero opacity: lanes whose bit is clear
+    /// look up as transparent. [`TfLut::lookup_at`] finishes the lookups.
+    #[inline(always)]
+    pub fn visible_lanes<I: Isa>(&self, isa: I, v: &[f32; LANES]) -> ([f32; LANES], u32) {
+        let mut x = [0.0; LANES];
+        let mut i = [0u32; LANES];
+        for l in 0..LANES {
+            x[l] = self.position(v[l]);
+            i[l] = Self::index(x[l]) as u32;
+        }
+        let key = isa.gather(&self.keys, &i);
+        let mut visible = [0u32; LANES];
+        for l in 0..LANES {
+            visible[l] = (key[l] != 0.0) as u32;
+        }
+        (x, isa.nonzero_mask(&visible))
+    }
+
+    /// [`TfLut::lookup`] of value `v` at its table position `x` (from
+    /// [`TfLut::positions`]).
+    #[inline(always)]
+    pub fn lookup_at(&self, x: f32, v: f32) -> Vec4 {
         let i = Self::index(x);
         if self.exact[i] {
             return self.exact_lookup(v);
@@ -452,6 +491,44 @@ fn correct(c: Vec4, step: f32) -> Vec4 {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// The lanes [`TfLut::visible_lanes`] leaves out look up as transparent,
+    /// its positions are `lookup`'s, and the AVX2 copy gives the same mask.
+    #[test]
+    fn visible_lanes_never_drop_a_visible_value() {
+        use crate::simd::{LANES, Portable};
+        let mut rng = fastrand::Rng::with_seed(3);
+        for name in PRESET_NAMES {
+            for step in [0.1, 0.5, 2.0] {
+                let tf = TransferFunction::preset(name, SampleType::I16).unwrap();
+                let lut = TfLut::new(&tf, step);
+                let (lo, hi) = tf.value_span();
+                for _ in 0..500 {
+                    let v: [f32; LANES] = std::array::from_fn(|_| {
+                        // Mostly inside the span, near its points, some outside.
+                        let p = tf.points[rng.usize(..tf.points.len())].value;
+                        match rng.u8(..4) {
+                            0 => lo - 10.0 + rng.f32() * (hi - lo + 20.0),
+                            1 => p + (rng.f32() - 0.5) * 0.01,
+                            2 => p,
+                            _ => lo + rng.f32() * (hi - lo),
+                        }
+                    });
+                    let (x, mask) = lut.visible_lanes(Portable, &v);
+                    for l in 0..LANES {
+                        assert_eq!(lut.lookup_at(x[l], v[l]), lut.lookup(v[l]));
+                        if mask & (1 << l) == 0 {
+                            assert_eq!(lut.lookup(v[l]).w, 0.0, "{name} at {}", v[l]);
+                        }
+                    }
+                    #[cfg(target_arch = "x86_64")]
+                    if let Some(avx2) = crate::simd::Avx2::detect() {
+                        assert_eq!(lut.visible_lanes(avx2, &v).1, mask);
+                    }
+                }
+            }
+        }
+    }
 
     #[test]
     fn presets_exist_and_validate() {
