@@ -25,31 +25,42 @@ impl Integrator for DvrState {
     const OCCUPANCY: Occupancy = Occupancy::Visible;
 
     /// Composites the span's samples front to back; uniform macrocells in
-    /// closed form.
+    /// closed form. Consecutive runs to be marched are marched as one, so
+    /// batches stay full across macrocell boundaries.
     #[inline]
     fn integrate<V: Volume>(&mut self, span: Span<'_, V>) -> u64 {
         let (ctx, seg) = (span.ctx, span.seg);
         let mut taken = 0u64;
         let threshold = ctx.ert.unwrap_or(f32::INFINITY);
+        // Samples `pending.0..pending.1` still to march.
+        let mut pending = (0u32, 0u32);
         for run in span.runs() {
-            if self.terminated {
-                break;
+            let march = match run.kind {
+                RunKind::Empty => false,
+                RunKind::Cell(i) => !ctx.macrocells.uniform[i],
+                RunKind::Unknown => true,
+            };
+            if march && run.start == pending.1 {
+                pending.1 = run.end;
+                continue;
             }
-            let n = run.end - run.start;
-            match run.kind {
-                RunKind::Empty => {}
-                RunKind::Cell(i) if ctx.macrocells.uniform[i] => {
-                    let v = ctx.macrocells.ranges[i].0;
-                    taken += self.composite_uniform(ctx, v, n, threshold);
+            taken += self.march(ctx, seg, pending.0, pending.1, threshold);
+            if self.terminated {
+                return taken;
+            }
+            pending = (run.start, run.start);
+            if march {
+                pending.1 = run.end;
+            } else if let RunKind::Cell(i) = run.kind {
+                let v = ctx.macrocells.ranges[i].0;
+                taken += self.composite_uniform(ctx, v, run.end - run.start, threshold);
+                if self.terminated {
+                    return taken;
                 }
-                RunKind::Cell(_) | RunKind::Unknown => {
-                    let (taken_here, done) = self.march(ctx, seg, run.start, run.end, threshold);
-                    taken += taken_here;
-                    self.terminated |= done;
-                }
+                pending = (run.end, run.end);
             }
         }
-        taken
+        taken + self.march(ctx, seg, pending.0, pending.1, threshold)
     }
 
     fn is_done(&self) -> bool {
@@ -63,7 +74,7 @@ impl Integrator for DvrState {
 
 impl DvrState {
     /// Samples `k..end` in batches, compositing front to back, in the best
-    /// instruction set. Returns (samples taken, terminated).
+    /// instruction set. Returns the samples taken.
     #[inline(always)]
     fn march<V: Volume>(
         &mut self,
@@ -72,7 +83,10 @@ impl DvrState {
         k: u32,
         end: u32,
         threshold: f32,
-    ) -> (u64, bool) {
+    ) -> u64 {
+        if k >= end {
+            return 0;
+        }
         simd::dispatch(March {
             state: self,
             ctx,
@@ -84,8 +98,9 @@ impl DvrState {
     }
 
     /// The marching loop: values and table positions a batch at a time,
-    /// then lookup, shading and compositing sample by sample. Works on local
-    /// copies of the state, so the loop keeps them in registers.
+    /// then lookup, shading and compositing of the lanes that may be
+    /// visible, in order. Works on local copies of the state, so the loop
+    /// keeps them in registers.
     #[inline(always)]
     fn march_lanes<V: Volume, I: Isa>(
         &mut self,
@@ -95,7 +110,7 @@ impl DvrState {
         k: u32,
         end: u32,
         threshold: f32,
-    ) -> (u64, bool) {
+    ) -> u64 {
         let volume = ctx.volume;
         let lut = ctx.lut;
         let shading = ctx.shading;
@@ -156,7 +171,8 @@ impl DvrState {
         }
         self.color = color;
         self.alpha = alpha;
-        (taken, done)
+        self.terminated |= done;
+        taken
     }
 
     /// Composites `n` samples of the constant value `v` in closed form: with
@@ -219,10 +235,10 @@ struct March<'a, 'c, V: Volume> {
 }
 
 impl<V: Volume> Kernel for March<'_, '_, V> {
-    type Output = (u64, bool);
+    type Output = u64;
 
     #[inline(always)]
-    fn run<I: Isa>(self, isa: I) -> (u64, bool) {
+    fn run<I: Isa>(self, isa: I) -> u64 {
         let March {
             state,
             ctx,
