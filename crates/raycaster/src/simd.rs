@@ -94,10 +94,24 @@ pub struct Avx2(());
 
 #[cfg(target_arch = "x86_64")]
 impl Avx2 {
-    /// The token, when this CPU has AVX2.
+    /// The token, when this CPU has AVX2 and the environment variable
+    /// `RAYCASTER_SIMD` is not `portable` (which forces the portable copies,
+    /// to compare the two).
     #[inline]
     pub fn detect() -> Option<Self> {
-        std::is_x86_feature_detected!("avx2").then_some(Avx2(()))
+        use std::sync::atomic::{AtomicU8, Ordering};
+        // 0: not decided yet, 1: portable, 2: AVX2.
+        static CHOICE: AtomicU8 = AtomicU8::new(0);
+        let choice = match CHOICE.load(Ordering::Relaxed) {
+            0 => {
+                let forced = std::env::var_os("RAYCASTER_SIMD").is_some_and(|v| v == "portable");
+                let c = if !forced && std::is_x86_feature_detected!("avx2") { 2 } else { 1 };
+                CHOICE.store(c, Ordering::Relaxed);
+                c
+            }
+            c => c,
+        };
+        (choice == 2).then_some(Avx2(()))
     }
 }
 
