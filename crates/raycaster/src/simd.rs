@@ -105,7 +105,11 @@ impl Avx2 {
         let choice = match CHOICE.load(Ordering::Relaxed) {
             0 => {
                 let forced = std::env::var_os("RAYCASTER_SIMD").is_some_and(|v| v == "portable");
-                let c = if !forced && std::is_x86_feature_detected!("avx2") { 2 } else { 1 };
+                let c = if !forced && std::is_x86_feature_detected!("avx2") {
+                    2
+                } else {
+                    1
+                };
                 CHOICE.store(c, Ordering::Relaxed);
                 c
             }

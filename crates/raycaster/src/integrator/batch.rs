@@ -105,6 +105,10 @@ impl SampleBatch {
                 self.frac[a][l] = f;
             }
         }
+        // The corners two batches ahead are on their way while this one
+        // works (rays through a large volume miss the cache on most new
+        // cells).
+        volume.prefetch(seg.pos(k + 4 * LANES as u32));
         // Corners: lane l starts a new cell when its cell differs from lane
         // l − 1's (lane 0 compares with the cache). Each new cell is loaded
         // into the next slot; slot 0 holds the cached cell until lane 0

@@ -81,6 +81,27 @@ impl<S: Sample, A: Addressing> Volume for GridVolume<'_, S, A> {
     }
 
     #[inline(always)]
+    fn prefetch(&self, p: Vec3) {
+        #[cfg(target_arch = "x86_64")]
+        {
+            use std::arch::x86_64::{_MM_HINT_T0, _mm_prefetch};
+            let base = self.addr.index(self.locate(p).cell);
+            let [sx, sy, _] = self.stride;
+            for i in [base, base + sy, base + sx, base + sx + sy] {
+                // `wrapping_add` keeps the address arithmetic defined even
+                // past the end (clamped cells stay inside, but the hint must
+                // never be a reason for undefined behaviour).
+                let at = self.data.as_ptr().wrapping_add(i).cast::<i8>();
+                // SAFETY: a prefetch is a hint that never faults and reads
+                // nothing the program sees, whatever the address.
+                unsafe { _mm_prefetch::<_MM_HINT_T0>(at) };
+            }
+        }
+        #[cfg(not(target_arch = "x86_64"))]
+        let _ = p;
+    }
+
+    #[inline(always)]
     fn wings(&self, cell: UVec3) -> Option<Wings> {
         if !super::stencil_inside(cell, self.grid.dims) {
             return None;

@@ -52,6 +52,11 @@ pub trait Volume: Send + Sync {
     /// [`Volume::locate`]), in [`Corners`] order.
     fn corners(&self, cell: UVec3) -> Corners;
 
+    /// Asks the CPU to start loading the corners of the cell holding
+    /// voxel-space position `p` into cache (a hint: no effect on results).
+    #[inline(always)]
+    fn prefetch(&self, _p: Vec3) {}
+
     /// The 24 voxel values one step outside cell `cell` along each axis, for
     /// the gradient (see [`Wings`]); `None` when they would leave the grid.
     fn wings(&self, cell: UVec3) -> Option<Wings>;
