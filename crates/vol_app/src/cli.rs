@@ -108,6 +108,10 @@ pub struct InfoArgs {
     /// Print one JSON object instead of text.
     #[arg(long)]
     pub json: bool,
+    /// Neither read nor write the macrocell cache (FILE.m<N>.rcidx): build
+    /// the value ranges from the samples.
+    #[arg(long)]
+    pub no_cache: bool,
     /// How to read a headerless file.
     #[command(flatten)]
     pub raw: RawArgs,
@@ -167,8 +171,24 @@ impl RawArgs {
         raycaster::format::OpenOptions {
             mode,
             raw,
-            progress: crate::progress::decode_bar(),
+            progress: crate::progress::bar("decoding"),
         }
+    }
+}
+
+/// The library's scene options: the macrocell side, the cache unless
+/// `no_cache`, and a progress bar for building the macrocell grid.
+pub fn scene_options(macrocell: Option<u32>, no_cache: bool) -> raycaster::scene::SceneOptions {
+    use raycaster::accel::cache::CachePolicy;
+    raycaster::scene::SceneOptions {
+        macrocell,
+        cache: if no_cache {
+            CachePolicy::Off
+        } else {
+            CachePolicy::Auto
+        },
+        cache_dir: None,
+        progress: crate::progress::bar("building the macrocell grid"),
     }
 }
 
@@ -287,6 +307,11 @@ pub struct RenderArgs {
     /// volume's own choice).
     #[arg(long, value_name = "N", value_parser = clap::value_parser!(u32).range(1..=1024))]
     pub macrocell: Option<u32>,
+    /// Neither read nor write the macrocell cache (FILE.m<N>.rcidx, kept
+    /// next to the volume or in the per-user cache directory): build the
+    /// value ranges from the samples.
+    #[arg(long)]
+    pub no_cache: bool,
     /// How to read a headerless file.
     #[command(flatten)]
     pub raw: RawArgs,
@@ -412,5 +437,12 @@ mod tests {
         assert!(cli.command.is_none() && cli.viewer.file.is_none());
         let cli = Cli::try_parse_from(["vol_app", "render", "x.vol"]).unwrap();
         assert!(matches!(cli.command, Some(Command::Render(_))));
+    }
+}
+
+/// Prints each of `warnings` on stderr as `vol_app: warning: ...`.
+pub fn warn_all(warnings: &[String]) {
+    for w in warnings {
+        eprintln!("vol_app: warning: {w}");
     }
 }
