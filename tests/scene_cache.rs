@@ -10,6 +10,7 @@ use std::path::{Path, PathBuf};
 
 use common::TempDir;
 use glam::{UVec3, Vec3};
+use raycaster::accel::MacrocellGrid;
 use raycaster::accel::cache::{self, CachePolicy};
 use raycaster::format::vol::{self, VolLayout};
 use raycaster::format::{OpenOptions, RawOptions};
@@ -54,10 +55,30 @@ fn open(path: &Path, options: &SceneOptions) -> OpenedScene {
         .unwrap_or_else(|e| panic!("{}: {e}", path.display()))
 }
 
-/// The grid built from the samples by the plain (uncached, row by row) path.
+/// The scene of the file built from its samples without a cache; its grid
+/// checked against the row-by-row pass of `MacrocellGrid::build`.
 fn fresh(path: &Path, cell: u32) -> Scene {
+    struct Rows(u32);
+    impl VolumeVisitor for Rows {
+        type Output = MacrocellGrid;
+        fn visit<V: Volume>(self, v: &V) -> MacrocellGrid {
+            MacrocellGrid::build(v, self.0)
+        }
+    }
     let volume = raycaster::format::open(path, LoadMode::Map).expect("open");
-    Scene::with_macrocell(volume, cell)
+    let rows = volume.visit(Rows(cell));
+    let scene = Scene::with_macrocell(volume, cell);
+    assert!(
+        scene.macrocells().ranges == rows.ranges,
+        "{}",
+        path.display()
+    );
+    assert!(
+        scene.macrocells().uniform == rows.uniform,
+        "{}",
+        path.display()
+    );
+    scene
 }
 
 fn assert_same_grid(what: &str, got: &Scene, want: &Scene) {

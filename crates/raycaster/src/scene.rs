@@ -15,7 +15,7 @@ use crate::accel::MacrocellGrid;
 use crate::accel::cache::{self, CacheKey, CacheMiss, CachePolicy, GridShape};
 use crate::error::Result;
 use crate::format::{OpenOptions, Progress, VolumeInfo};
-use crate::volume::{AnyVolume, Grid, Volume, VolumeVisitor};
+use crate::volume::{AnyVolume, Grid};
 
 /// A volume and its macrocell value ranges.
 #[derive(Debug)]
@@ -26,29 +26,22 @@ pub struct Scene {
     value_range: (f32, f32),
 }
 
-struct BuildMacrocells(Option<u32>);
-
-impl VolumeVisitor for BuildMacrocells {
-    type Output = MacrocellGrid;
-    fn visit<V: Volume>(self, volume: &V) -> MacrocellGrid {
-        MacrocellGrid::build(
-            volume,
-            self.0
-                .unwrap_or_else(|| default_macrocell(volume.grid().dims)),
-        )
-    }
-}
-
 impl Scene {
     /// Builds the macrocell grid of `volume` (one pass over the data) with
     /// the default macrocell size (see [`default_macrocell`]).
     pub fn new(volume: AnyVolume) -> Self {
-        Self::build(volume, None)
+        Self::with_options(volume, &SceneOptions::default())
     }
 
     /// As [`Scene::new`] with an explicit macrocell side in voxels.
     pub fn with_macrocell(volume: AnyVolume, cell: u32) -> Self {
-        Self::build(volume, Some(cell))
+        Self::with_options(
+            volume,
+            &SceneOptions {
+                macrocell: Some(cell),
+                ..SceneOptions::default()
+            },
+        )
     }
 
     /// Builds the macrocell grid of `volume` as `options` say (side and
@@ -147,11 +140,6 @@ impl Scene {
             info: opened.info,
             cache: report,
         })
-    }
-
-    fn build(volume: AnyVolume, cell: Option<u32>) -> Self {
-        let macrocells = volume.visit(BuildMacrocells(cell));
-        Self::from_grid(volume, macrocells)
     }
 
     /// The scene of `volume` with its grid `macrocells`.

@@ -391,6 +391,13 @@ fn parse_size(s: &str) -> Result<(u32, u32), String> {
     Ok((p(w)?, p(h)?))
 }
 
+/// Prints each of `warnings` on stderr as `vol_app: warning: ...`.
+pub fn warn_all(warnings: &[String]) {
+    for w in warnings {
+        eprintln!("vol_app: warning: {w}");
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -437,12 +444,5 @@ mod tests {
         assert!(cli.command.is_none() && cli.viewer.file.is_none());
         let cli = Cli::try_parse_from(["vol_app", "render", "x.vol"]).unwrap();
         assert!(matches!(cli.command, Some(Command::Render(_))));
-    }
-}
-
-/// Prints each of `warnings` on stderr as `vol_app: warning: ...`.
-pub fn warn_all(warnings: &[String]) {
-    for w in warnings {
-        eprintln!("vol_app: warning: {w}");
     }
 }

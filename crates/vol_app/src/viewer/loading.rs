@@ -482,6 +482,42 @@ mod tests {
         }
     }
 
+    /// A mapped volume larger than the sample budget is counted in whole
+    /// blocks: about the budget's worth of voxels, spread over the volume
+    /// (both halves show in proportion), and none of the bricks' padding.
+    #[test]
+    fn a_large_mapped_volume_is_counted_in_blocks_without_padding() {
+        let dir = std::env::temp_dir().join(format!("vol_app-hist-{}", std::process::id()));
+        std::fs::create_dir_all(&dir).unwrap();
+        let path = dir.join("halves.vol");
+        let dims = UVec3::splat(131); // 9 bricks of 16 per axis: padded
+        let v = AnyVolume::from_fn(
+            Grid::new(dims, Vec3::ONE),
+            |p| {
+                if p.x < 65 { 7u8 } else { 3 }
+            },
+        );
+        raycaster::format::vol::write(
+            &path,
+            &v,
+            raycaster::format::vol::VolLayout::Bricked { side: 16 },
+        )
+        .unwrap();
+        let mapped = raycaster::format::open(&path, LoadMode::Map).unwrap();
+        assert_eq!(mapped.storage_kind(), StorageKind::Mapped);
+        let h = Histogram::of(&mapped, (0.0, 7.0), |_| {});
+        std::fs::remove_dir_all(&dir).ok();
+        let total: u64 = h.counts.iter().sum();
+        assert!(
+            (HISTOGRAM_SAMPLES / 2..=HISTOGRAM_SAMPLES).contains(&total),
+            "{total}"
+        );
+        assert_eq!(h.counts[0], 0, "padding counted");
+        assert_eq!(total, h.counts[3] + h.counts[7]);
+        let share = h.counts[7] as f64 / total as f64;
+        assert!((0.4..0.6).contains(&share), "{share}");
+    }
+
     #[test]
     fn the_demo_loads_and_a_missing_file_is_an_error() {
         let job = LoadJob::start(Source::Demo, || {});
