@@ -25,9 +25,10 @@
 //!
 //! **Damage.** A CRC-32 over the whole cache file guards against a
 //! truncated or damaged cache; such a file is ignored with a warning and
-//! rebuilt. Caches are written through
-//! [`write_atomically`](crate::format::atomic::write_atomically), so a
-//! reader never sees half of one.
+//! rebuilt. Caches are written under a temporary name and renamed
+//! ([`write_atomically_unsynced`](crate::format::atomic::write_atomically_unsynced)),
+//! so a reader never sees half of one; they are not synced to the disk,
+//! since the checksum catches what a crash may leave.
 //!
 //! **The file** (all numbers little-endian):
 //!
@@ -212,7 +213,9 @@ pub fn store(
     grid: &MacrocellGrid,
 ) -> crate::Result<()> {
     let bytes = encode(key, shape, grid);
-    crate::format::atomic::write_atomically(path, |w| std::io::Write::write_all(w, &bytes))
+    // Not synced: a cache that a crash leaves half-written fails its
+    // checksum and is rebuilt.
+    crate::format::atomic::write_atomically_unsynced(path, |w| std::io::Write::write_all(w, &bytes))
 }
 
 fn type_tag(t: SampleType) -> u8 {

@@ -181,11 +181,13 @@ pub(crate) fn cell_value_ranges_bricked<S: Sample>(
                         // Local z: the few windows of the row.
                         let row = (xi * ny + cy) * nz;
                         for &(cz, z0, z1) in wz {
-                            let (l, h) = (&mut lo[row + cz], &mut hi[row + cz]);
-                            for z in z0..=z1 {
-                                *l = l.min_of(rlo[z]);
-                                *h = h.max_of(rhi[z]);
-                            }
+                            let (l, h) = rlo[z0..=z1]
+                                .iter()
+                                .zip(&rhi[z0..=z1])
+                                .fold((lo[row + cz], hi[row + cz]), |(l, h), (&a, &b)| {
+                                    (l.min_of(a), h.max_of(b))
+                                });
+                            (lo[row + cz], hi[row + cz]) = (l, h);
                         }
                     }
                 }
