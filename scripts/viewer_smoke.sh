@@ -6,7 +6,12 @@
 # colours, neither blank nor uniform), saves the screenshot as PNG and exits
 # 0; exits 1 if that does not happen within the timeout.
 #
-#   scripts/viewer_smoke.sh [--out PNG] [--timeout SECONDS] [--no-build] [-- VOL_APP_ARGS...]
+#   scripts/viewer_smoke.sh [--out PNG] [--timeout SECONDS] [--settle SECONDS] [--no-build] [-- VOL_APP_ARGS...]
+#
+# The viewer shows a fast reduced preview first and refines it; the
+# screenshot is retaken --settle seconds (default 5) after the first
+# rendered frame, when the refinement to full resolution has had time to
+# finish.
 #
 # Without VOL_APP_ARGS the viewer opens its built-in demo volume. The README's
 # screenshot:
@@ -20,14 +25,17 @@ cd "$(dirname "$0")/.."
 
 out=target/viewer_smoke.png
 timeout=60
+settle=5
+settled=0
 build=1
 while [ $# -gt 0 ]; do
     case "$1" in
         --out) out=$2; shift 2 ;;
         --timeout) timeout=$2; shift 2 ;;
+        --settle) settle=$2; shift 2 ;;
         --no-build) build=0; shift ;;
         --) shift; break ;;
-        -h|--help) sed -n '2,17p' "$0"; exit 0 ;;
+        -h|--help) sed -n '2,23p' "$0"; exit 0 ;;
         *) echo "viewer_smoke: unknown option $1 (see --help)" >&2; exit 2 ;;
     esac
 done
@@ -146,6 +154,13 @@ if ok:
 sys.exit(0 if ok else 1)
 PY
     ); then
+        if [ "$settled" = 0 ] && [ "$settle" != 0 ]; then
+            echo "== first frame: $verdict; waiting ${settle} s for the refinement"
+            settled=1
+            sleep "$settle"
+            deadline=$(( deadline + settle ))
+            continue
+        fi
         elapsed=$(python3 -c "import time; print(f'{time.time() - $started:.1f}')")
         echo "== $verdict"
         echo "viewer_smoke: OK, screenshot $out (${elapsed} s in all)"

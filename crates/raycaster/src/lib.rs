@@ -72,6 +72,7 @@ pub mod integrator;
 pub mod render;
 pub mod sample;
 pub mod scene;
+pub mod simd;
 pub mod storage;
 pub mod transfer;
 pub mod units;

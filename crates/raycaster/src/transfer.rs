@@ -10,6 +10,7 @@
 
 use std::path::Path;
 
+use crate::simd::{Isa, LANES};
 use glam::{Vec3, Vec4};
 use serde::{Deserialize, Serialize};
 
@@ -169,9 +170,12 @@ impl TransferFunction {
             "shapes" => (
                 Step,
                 vec![
-                    pt(85.0, rgb255(255, 30, 60), 0.02),
-                    pt(95.0, rgb255(10, 60, 180), 0.3),
-                    pt(100.0, rgb255(90, 210, 20), 0.6),
+                    // Just above the bounds: red for 85 < v <= 95, blue for
+                    // 95 < v <= 100, green for 100 < v < 115, so shapes of
+                    // exactly 95 and 100 take the colour below the bound.
+                    pt(85.001, rgb255(255, 30, 60), 0.02),
+                    pt(95.001, rgb255(10, 60, 180), 0.3),
+                    pt(100.001, rgb255(90, 210, 20), 0.6),
                     pt(115.0, [0.0; 3], 0.0),
                 ],
             ),
@@ -292,15 +296,24 @@ fn mr_scale(t: SampleType) -> f32 {
 /// covers the span of the TF's points at `scale` entries per value unit (a
 /// power of two, so points at integers or simple fractions fall exactly on
 /// entry boundaries); one extra entry at each end holds what the TF gives
-/// below the first and above the last point. A table interval that has a
-/// control point strictly inside it (a step or a kink the table cannot
-/// represent) is flagged, and values falling there are evaluated exactly, so
-/// lookups equal [`TransferFunction::evaluate`] whatever the points.
+/// below the first and above the last point. A step TF's interval with one
+/// control point strictly inside it is split at that point (values above it
+/// take the next entry); any other interval with a control point inside it (a
+/// kink the table cannot represent) is flagged, and values falling there are
+/// evaluated exactly, so lookups equal [`TransferFunction::evaluate`]
+/// whatever the points.
 #[derive(Debug, Clone)]
 pub struct TfLut {
     entries: Vec<Vec4>,
     /// Per interval: evaluate exactly instead of from the table.
     exact: Vec<bool>,
+    /// Per interval of a step TF: the one point inside it (+∞ when none):
+    /// values at or above it take the next entry, which is that point's.
+    split: Vec<f32>,
+    /// Per interval: 0 when every value in it is transparent by the table,
+    /// non-zero otherwise (and for exact intervals), for
+    /// [`TfLut::visible_lanes`].
+    keys: Vec<f32>,
     /// Prefix counts of intervals that hold a visible value, for [`TfLut::any_visible`].
     visible_prefix: Vec<u32>,
     tf: TransferFunction,
@@ -340,6 +353,7 @@ impl TfLut {
         // interval's right end also makes it exact.
         let intervals = entries.len() - 1;
         let mut exact = vec![false; intervals];
+        let mut split = vec![f32::INFINITY; intervals];
         let mut visible = vec![false; intervals];
         for j in 0..intervals {
             let (a, b) = (node(j), node(j + 1));
@@ -351,11 +365,26 @@ impl TfLut {
                     .filter(|p| p.value > a && (p.value < b || (linear && p.value <= b)))
                     .collect()
             };
-            exact[j] = !inner.is_empty();
+            // One step inside an interval splits it in two table entries:
+            // the TF is constant from that point to the next node.
+            // (Unless another point sits on that node.)
+            let point_on_end = tf.points.iter().any(|p| p.value == b);
+            match inner.as_slice() {
+                [p] if !linear && !point_on_end => split[j] = p.value,
+                [] => {}
+                _ => exact[j] = true,
+            }
             visible[j] = entries[j].w > 0.0
                 || (linear && entries[j + 1].w > 0.0)
                 || inner.iter().any(|p| p.opacity > 0.0);
         }
+        let keys = (0..intervals)
+            .map(|j| match (exact[j], linear || split[j].is_finite()) {
+                (true, _) => -1.0,
+                (false, true) => entries[j].w.max(entries[j + 1].w),
+                (false, false) => entries[j].w,
+            })
+            .collect();
         let mut visible_prefix = Vec::with_capacity(intervals + 1);
         let mut count = 0u32;
         visible_prefix.push(0);
@@ -367,6 +396,8 @@ impl TfLut {
         TfLut {
             entries,
             exact,
+            split,
+            keys,
             visible_prefix,
             tf: tf.clone(),
             lo,
@@ -402,7 +433,33 @@ impl TfLut {
     /// Premultiplied, step-corrected `(α·r, α·g, α·b, α)` at value `v`.
     #[inline(always)]
     pub fn lookup(&self, v: f32) -> Vec4 {
-        let x = self.position(v);
+        self.lookup_at(self.position(v), v)
+    }
+
+    /// The table positions of the values `v`, computed lane-wise (the part
+    /// of [`TfLut::lookup`] that vectorises), and a mask with bit `l` set
+    /// when `v[l]` may have a non-zero opacity: lanes whose bit is clear
+    /// look up as transparent. [`TfLut::lookup_at`] finishes the lookups.
+    #[inline(always)]
+    pub fn visible_lanes<I: Isa>(&self, isa: I, v: &[f32; LANES]) -> ([f32; LANES], u32) {
+        let mut x = [0.0; LANES];
+        let mut i = [0u32; LANES];
+        for l in 0..LANES {
+            x[l] = self.position(v[l]);
+            i[l] = Self::index(x[l]) as u32;
+        }
+        let key = isa.gather(&self.keys, &i);
+        let mut visible = [0u32; LANES];
+        for l in 0..LANES {
+            visible[l] = (key[l] != 0.0) as u32;
+        }
+        (x, isa.nonzero_mask(&visible))
+    }
+
+    /// [`TfLut::lookup`] of value `v` at its table position `x` (from
+    /// [`TfLut::positions`]).
+    #[inline(always)]
+    pub fn lookup_at(&self, x: f32, v: f32) -> Vec4 {
         let i = Self::index(x);
         if self.exact[i] {
             return self.exact_lookup(v);
@@ -413,7 +470,7 @@ impl TfLut {
             let b = self.entries[i + 1];
             a + (b - a) * f
         } else {
-            self.entries[i]
+            self.entries[i + (v >= self.split[i]) as usize]
         }
     }
 
@@ -429,7 +486,22 @@ impl TfLut {
     pub fn any_visible(&self, vmin: f32, vmax: f32) -> bool {
         let a = Self::index(self.position(vmin));
         let b = Self::index(self.position(vmax));
-        self.visible_prefix[b + 1] > self.visible_prefix[a]
+        // Whether interval `j` holds a visible value, counting only the
+        // parts of a split interval below / above its point the range
+        // reaches.
+        let part = |j: usize, lower: bool, upper: bool| {
+            if self.split[j].is_finite() {
+                (lower && self.entries[j].w > 0.0) || (upper && self.entries[j + 1].w > 0.0)
+            } else {
+                self.visible_prefix[j + 1] > self.visible_prefix[j]
+            }
+        };
+        if a == b {
+            return part(a, vmin < self.split[a], vmax >= self.split[a]);
+        }
+        part(a, vmin < self.split[a], true)
+            || part(b, true, vmax >= self.split[b])
+            || self.visible_prefix[b] > self.visible_prefix[a + 1]
     }
 
     /// Colour (not premultiplied) and step-corrected opacity at `v`.
@@ -453,6 +525,44 @@ fn correct(c: Vec4, step: f32) -> Vec4 {
 mod tests {
     use super::*;
 
+    /// The lanes [`TfLut::visible_lanes`] leaves out look up as transparent,
+    /// its positions are `lookup`'s, and the AVX2 copy gives the same mask.
+    #[test]
+    fn visible_lanes_never_drop_a_visible_value() {
+        use crate::simd::{LANES, Portable};
+        let mut rng = fastrand::Rng::with_seed(3);
+        for name in PRESET_NAMES {
+            for step in [0.1, 0.5, 2.0] {
+                let tf = TransferFunction::preset(name, SampleType::I16).unwrap();
+                let lut = TfLut::new(&tf, step);
+                let (lo, hi) = tf.value_span();
+                for _ in 0..500 {
+                    let v: [f32; LANES] = std::array::from_fn(|_| {
+                        // Mostly inside the span, near its points, some outside.
+                        let p = tf.points[rng.usize(..tf.points.len())].value;
+                        match rng.u8(..4) {
+                            0 => lo - 10.0 + rng.f32() * (hi - lo + 20.0),
+                            1 => p + (rng.f32() - 0.5) * 0.01,
+                            2 => p,
+                            _ => lo + rng.f32() * (hi - lo),
+                        }
+                    });
+                    let (x, mask) = lut.visible_lanes(Portable, &v);
+                    for l in 0..LANES {
+                        assert_eq!(lut.lookup_at(x[l], v[l]), lut.lookup(v[l]));
+                        if mask & (1 << l) == 0 {
+                            assert_eq!(lut.lookup(v[l]).w, 0.0, "{name} at {}", v[l]);
+                        }
+                    }
+                    #[cfg(target_arch = "x86_64")]
+                    if let Some(avx2) = crate::simd::Avx2::detect() {
+                        assert_eq!(lut.visible_lanes(avx2, &v).1, mask);
+                    }
+                }
+            }
+        }
+    }
+
     #[test]
     fn presets_exist_and_validate() {
         for name in PRESET_NAMES {
@@ -465,11 +575,15 @@ mod tests {
     #[test]
     fn step_evaluation_follows_the_spec() {
         let tf = TransferFunction::preset("shapes", SampleType::U8).unwrap();
-        assert_eq!(tf.evaluate(84.99).w, 0.0);
-        assert_eq!(tf.evaluate(85.0).w, 0.02);
-        assert_eq!(tf.evaluate(99.9).w, 0.3);
-        assert_eq!(tf.evaluate(100.0).w, 0.6);
-        assert_eq!(tf.evaluate(200.0).w, 0.0);
+        assert_eq!(tf.evaluate(85.0).w, 0.0);
+        assert_eq!(tf.evaluate(85.01).w, 0.02);
+        // The generator's shapes of exactly 95 and 100 are red and blue.
+        assert_eq!(tf.evaluate(95.0).w, 0.02);
+        assert_eq!(tf.evaluate(95.01).w, 0.3);
+        assert_eq!(tf.evaluate(100.0).w, 0.3);
+        assert_eq!(tf.evaluate(100.01).w, 0.6);
+        assert_eq!(tf.evaluate(114.99).w, 0.6);
+        assert_eq!(tf.evaluate(115.0).w, 0.0);
     }
 
     #[test]
@@ -526,8 +640,8 @@ mod tests {
             &TransferFunction::preset("shapes", SampleType::U8).unwrap(),
             0.2,
         );
-        assert!(!shapes.any_visible(0.0, 84.9));
-        assert!(shapes.any_visible(0.0, 85.0));
+        assert!(!shapes.any_visible(0.0, 85.0));
+        assert!(shapes.any_visible(0.0, 85.01));
         assert!(!shapes.any_visible(115.0, 255.0));
     }
 

@@ -300,6 +300,13 @@ pub struct RenderArgs {
     /// Print one JSON object of timings and counters on stdout.
     #[arg(long)]
     pub stats: bool,
+    /// Render what the viewer renders: N preview frames of a camera
+    /// orbiting 2° per frame, each at the size and step the viewer's
+    /// picker chooses from the frames timed before it, then the refinement
+    /// (1/4, 1/2, full resolution) once still; reports each frame's time.
+    /// --out saves the final frame.
+    #[arg(long, value_name = "N", value_parser = clap::value_parser!(u32).range(1..=100_000), conflicts_with = "repeat")]
+    pub progressive: Option<u32>,
     /// Read the file into RAM instead of memory-mapping it.
     #[arg(long)]
     pub in_ram: bool,

@@ -8,6 +8,7 @@ mod cli;
 mod convert_cmd;
 mod info_cmd;
 mod progress;
+mod progressive_cmd;
 mod render_cmd;
 mod stats;
 

@@ -119,6 +119,19 @@ pub fn run(args: &RenderArgs) -> Result<(), Error> {
             })?)
         }
     };
+    if let Some(previews) = args.progressive {
+        return crate::progressive_cmd::run(crate::progressive_cmd::Setup {
+            renderer,
+            scene: std::sync::Arc::new(scene),
+            camera,
+            tf,
+            options,
+            previews,
+            load_ms,
+            out: args.out.as_deref(),
+            stats: args.stats,
+        });
+    }
     let (last, times) = render_repeated(
         renderer.as_mut(),
         &scene,

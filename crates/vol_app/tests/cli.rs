@@ -53,6 +53,7 @@ fn help_exits_zero_and_documents_options() {
         "--background",
         "--repeat",
         "--stats",
+        "--progressive",
     ];
     assert_stdout_mentions(&out, &options);
     assert!(vol_app().arg("--help").output().unwrap().status.success());
@@ -113,6 +114,66 @@ fn stats_is_one_json_object_with_the_spec_fields() {
             assert_eq!(v["threads"], 1);
         }
     }
+}
+
+#[test]
+fn progressive_reproduces_the_viewers_previews_then_refinement() {
+    let dir = TempDir::new("progressive");
+    let file = ball_file(&dir, VolLayout::Linear);
+    let png = dir.path("final.png");
+    let out = run_ok(
+        vol_app_on("render", &file)
+            .args([
+                "--size",
+                "400x300",
+                "--progressive",
+                "4",
+                "--stats",
+                "--renderer",
+                "tiles",
+                "--out",
+            ])
+            .arg(&png),
+    );
+    let v: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
+    assert_eq!(
+        (v["width"].as_u64(), v["height"].as_u64()),
+        (Some(400), Some(300))
+    );
+    assert!(v["preview_ms_median"].as_f64().unwrap() > 0.0);
+    let frames = v["frames"].as_array().unwrap();
+    let stage = |f: &serde_json::Value| f["stage"].as_str().unwrap().to_string();
+    let field = |f: &serde_json::Value, k: &str| f[k].as_u64().unwrap();
+    // Four previews, the first at the untimed guess (¼ size, step ×2).
+    assert!(frames[..4].iter().all(|f| stage(f) == "preview"), "{v}");
+    assert_eq!(
+        (
+            field(&frames[0], "downscale"),
+            field(&frames[0], "step_scale")
+        ),
+        (4, 2)
+    );
+    // Each frame has its level's size; the refinement gets finer and ends
+    // at full quality (unless a preview was full quality already).
+    for f in frames {
+        let d = field(f, "downscale");
+        assert_eq!(
+            (field(f, "width"), field(f, "height")),
+            (400 / d, 300 / d),
+            "{f}"
+        );
+    }
+    let refined: Vec<u64> = frames[4..].iter().map(|f| field(f, "downscale")).collect();
+    assert!(refined.iter().all(|d| [4, 2, 1].contains(d)), "{v}");
+    assert!(refined.windows(2).all(|w| w[1] < w[0]), "{v}");
+    let last = frames.last().unwrap();
+    assert_eq!(
+        (field(last, "downscale"), field(last, "step_scale")),
+        (1, 1)
+    );
+    // The saved image is the final, full-size frame.
+    let img = image::open(&png).unwrap();
+    assert_eq!((img.width(), img.height()), (400, 300));
 }
 
 #[test]

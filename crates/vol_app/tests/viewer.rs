@@ -18,7 +18,8 @@ use raycaster::integrator::RenderMode;
 use raycaster::render::RendererKind;
 use raycaster::sample::SampleType;
 use raycaster::transfer::TransferFunction;
-use vol_app::viewer::state::{ResolutionChoice, StepChoice};
+use vol_app::viewer::progressive::{Level, REFINEMENT};
+use vol_app::viewer::state::ResolutionChoice;
 use vol_app::viewer::{Settings, StartOptions, ViewerApp};
 
 const TIMEOUT: Duration = Duration::from_secs(25);
@@ -40,10 +41,9 @@ fn volume_file(dir: &TempDir, name: &str, dims: UVec3, layout: VolLayout) -> Pat
     })
 }
 
-/// Settings that render quickly: a small fixed-size image, adaptive step.
+/// Settings that render quickly: a small fixed-size image.
 fn quick_settings() -> Settings {
     Settings {
-        step: StepChoice::Adaptive,
         resolution: ResolutionChoice::Fixed,
         fixed_size: 240,
         ..Settings::default()
@@ -109,7 +109,7 @@ fn distinct_colours(a: &ViewerApp) -> usize {
 /// The frame on screen answers the newest request (nothing stale is shown).
 fn frame_is_current(a: &ViewerApp) -> bool {
     match (a.last_frame(), a.last_request()) {
-        (Some(f), Some(r)) => f.camera == r.camera && f.preview == r.preview,
+        (Some(f), Some(r)) => f.camera == r.camera && f.preview == r.preview && f.level == r.level,
         _ => false,
     }
 }
@@ -217,7 +217,13 @@ fn starts_on_the_demo_volume_and_renders_it() {
     h.get_by_label("built-in demo");
     h.get_by_label("160 × 160 × 160");
     h.get_by_label_contains("samples");
-    let f = &app(&h).last_frame().unwrap().frame;
+    // Settled: refined to full quality, at the default step of half the
+    // smallest spacing (the demo's is 1), as `vol_app render`.
+    h.get_by_label_contains("full quality");
+    let shown = app(&h).last_frame().unwrap();
+    assert_eq!(shown.level, Level::FULL);
+    assert_eq!(shown.step, 0.5);
+    let f = &shown.frame;
     let canvas = h.get_by_label("Volume canvas").rect();
     assert!(
         canvas.width() > 500.0,
@@ -433,10 +439,6 @@ fn dragging_on_the_canvas_orbits_pans_and_renders_new_frames() {
     h.step();
     let during = app(&h).last_request().unwrap().clone();
     assert!(during.preview, "a moving camera should get preview frames");
-    assert!(
-        during.options.step.unwrap() > 0.5,
-        "preview frames use the coarse step"
-    );
     button(&mut h, p, PointerButton::Primary, false);
     settle(&mut h);
     let a = app(&h);
@@ -451,8 +453,10 @@ fn dragging_on_the_canvas_orbits_pans_and_renders_new_frames() {
     assert_eq!(cam1.target, cam0.target);
     assert!(a.frames_received() > n0);
     assert!(frame_is_current(a));
-    assert!(
-        !a.last_frame().unwrap().preview,
+    // (A preview can be full quality already, when that is fast enough.)
+    assert_eq!(
+        a.last_frame().unwrap().level,
+        Level::FULL,
         "full quality once the drag ends"
     );
     let f = a.last_frame().unwrap();
@@ -490,7 +494,7 @@ fn dragging_on_the_canvas_orbits_pans_and_renders_new_frames() {
     });
     settle(&mut h);
     step_until(&mut h, "the zoom to settle", |a| {
-        !a.is_rendering() && !a.last_request().unwrap().preview
+        !a.is_rendering() && a.last_request().unwrap().level == Level::FULL
     });
     assert!(app(&h).camera().distance < d, "the wheel zooms in");
 
@@ -621,7 +625,7 @@ fn the_tf_editor_adds_points_and_the_tf_round_trips_through_json() {
     assert!(tf.points[k].opacity > before.opacity);
     assert!(tf.points[k].value < before.value);
     assert!(tf.points[k].value >= tf.points[k - 1].value);
-    assert!(!app(&h).last_request().unwrap().preview);
+    assert_eq!(app(&h).last_request().unwrap().level, Level::FULL);
     assert_eq!(app(&h).last_frame().unwrap().frame.width, 240);
 
     let json = dir.path("tf.json");
@@ -643,6 +647,141 @@ fn the_tf_editor_adds_points_and_the_tf_round_trips_through_json() {
     assert_eq!(&bytes[..8], b"\x89PNG\r\n\x1a\n");
 }
 
+/// The level and stage of every frame that reaches the screen until the
+/// viewer is settled.
+fn frames_until_settled(h: &mut H) -> Vec<(Level, bool)> {
+    let mut seen = Vec::new();
+    let mut n = app(h).frames_received();
+    let start = Instant::now();
+    loop {
+        h.step();
+        let a = app(h);
+        if a.frames_received() != n {
+            n = a.frames_received();
+            let f = a.last_frame().unwrap();
+            seen.push((f.level, f.preview));
+        }
+        if !a.is_rendering() && !a.is_loading() {
+            return seen;
+        }
+        assert!(start.elapsed() < TIMEOUT, "timed out; frames {seen:?}");
+        std::thread::sleep(Duration::from_millis(2));
+    }
+}
+
+#[test]
+fn a_moving_camera_gets_previews_and_a_still_one_refines_quarter_half_full() {
+    let dir = TempDir::new("progressive");
+    let (mut h, _) = open_file(&dir);
+    // No time for anything: previews are the coarsest level that keeps a
+    // usable image, whatever this machine's speed.
+    app_mut(&mut h).set_preview_budget(Duration::ZERO);
+    let full_step = app(&h).last_frame().unwrap().step;
+    let canvas = h.get_by_label("Volume canvas").rect();
+    for round in 0..2 {
+        // Dragging: every request is a reduced, coarser preview, and no
+        // refinement is asked for while the button is down.
+        let p = press_and_move(
+            &mut h,
+            canvas.center(),
+            PointerButton::Primary,
+            egui::vec2(8.0, 3.0),
+            4,
+        );
+        for _ in 0..4 {
+            h.step();
+            let r = app(&h).last_request().unwrap();
+            assert!(r.preview, "round {round}: {:?}", r.level);
+            assert_eq!(r.level, Level::new(8, 3), "240 px / 8 = 30 px");
+            assert_eq!(r.step(), full_step * 3.0);
+            std::thread::sleep(Duration::from_millis(5));
+        }
+        // Still holding the button: the preview arrives and stays.
+        step_until(&mut h, "a preview on screen", |a| {
+            a.last_frame()
+                .is_some_and(|f| f.preview && f.frame.width == 30)
+        });
+        assert!(app(&h).last_request().unwrap().preview);
+        // Released: ¼ → ½ → full, in order, then nothing more.
+        button(&mut h, p, PointerButton::Primary, false);
+        let seen = frames_until_settled(&mut h);
+        let refined: Vec<Level> = seen.iter().filter(|f| !f.1).map(|f| f.0).collect();
+        assert_eq!(refined, REFINEMENT, "round {round}: {seen:?}");
+        assert!(
+            seen.iter().skip_while(|f| f.1).all(|f| !f.1),
+            "no preview after the refinement started: {seen:?}"
+        );
+        let a = app(&h);
+        assert!(frame_is_current(a));
+        assert_eq!(a.last_frame().unwrap().frame.width, 240);
+        assert_eq!(a.last_frame().unwrap().step, full_step);
+        h.get_by_label_contains("full quality");
+        // The second round's drag is new input on a refined view: it
+        // starts over with previews (checked by the loop above).
+    }
+    // A setting switched while still: a preview, then the refinement.
+    h.get_by_label("Shading (Phong)").click();
+    let seen = frames_until_settled(&mut h);
+    assert_eq!(seen.first().map(|f| f.1), Some(true), "{seen:?}");
+    let refined: Vec<Level> = seen.iter().filter(|f| !f.1).map(|f| f.0).collect();
+    assert_eq!(refined, REFINEMENT, "{seen:?}");
+
+    // A drag that interrupts the refinement: the refinement request in
+    // progress is replaced by previews at once.
+    h.get_by_label("Shading (Phong)").click();
+    let mut interrupted = false;
+    for _ in 0..200 {
+        h.step();
+        let r = app(&h).last_request().unwrap();
+        if !r.preview {
+            let p = press_and_move(
+                &mut h,
+                canvas.center(),
+                PointerButton::Primary,
+                egui::vec2(-5.0, 0.0),
+                2,
+            );
+            h.step();
+            let r = app(&h).last_request().unwrap();
+            assert!(r.preview && r.level == Level::new(8, 3), "{:?}", r.level);
+            button(&mut h, p, PointerButton::Primary, false);
+            interrupted = true;
+            break;
+        }
+        std::thread::sleep(Duration::from_millis(1));
+    }
+    assert!(interrupted, "the refinement never started");
+    settle(&mut h);
+    assert!(frame_is_current(app(&h)));
+    assert_eq!(app(&h).last_frame().unwrap().level, Level::FULL);
+}
+
+#[test]
+fn without_progressive_refinement_every_frame_is_full_quality() {
+    let dir = TempDir::new("no_progressive");
+    let (mut h, _) = open_file(&dir);
+    h.get_by_label("Progressive refinement").click();
+    h.step();
+    assert!(!app(&h).settings().progressive);
+    let canvas = h.get_by_label("Volume canvas").rect();
+    let p = press_and_move(
+        &mut h,
+        canvas.center(),
+        PointerButton::Primary,
+        egui::vec2(8.0, 3.0),
+        3,
+    );
+    h.step();
+    let r = app(&h).last_request().unwrap();
+    assert!(!r.preview && r.level == Level::FULL, "{:?}", r.level);
+    button(&mut h, p, PointerButton::Primary, false);
+    let seen = frames_until_settled(&mut h);
+    assert!(
+        seen.iter().all(|&(l, p)| l == Level::FULL && !p),
+        "{seen:?}"
+    );
+}
+
 #[test]
 fn the_ui_keeps_running_while_a_slow_frame_renders() {
     let dir = TempDir::new("slow");
@@ -653,7 +792,7 @@ fn the_ui_keeps_running_while_a_slow_frame_renders() {
         s.renderer = RendererKind::Serial;
         s.resolution = ResolutionChoice::Fixed;
         s.fixed_size = 1400;
-        s.step = StepChoice::Fine;
+        s.step_factor = 0.2;
         s.ert = false;
         s.ess = false;
     }
@@ -706,7 +845,7 @@ fn settings_persist_through_eframe_storage() {
     h.get_by_label("MIP").click();
     h.get_by_label("Empty-space skipping (ESS)").click();
     h.step();
-    h.get_by_label("Coarse").click();
+    h.get_by_label("Progressive refinement").click();
     h.step();
     let mut storage = MemStorage::default();
     eframe::App::save(app_mut(&mut h), &mut storage);
@@ -714,7 +853,7 @@ fn settings_persist_through_eframe_storage() {
     assert_eq!(&restored, app(&h).settings());
     assert_eq!(restored.mode, RenderMode::Mip);
     assert!(!restored.ess);
-    assert_eq!(restored.step, StepChoice::Coarse);
+    assert!(!restored.progressive);
     assert_eq!(restored.last_dir.as_deref(), path.parent());
     assert_eq!(Settings::load(None), Settings::default());
 }

@@ -2,6 +2,7 @@
 
 use glam::{Vec3, Vec4};
 
+use super::batch::fold_values;
 use super::{FrameContext, Integrator, Span};
 use crate::volume::Volume;
 
@@ -19,10 +20,7 @@ impl Integrator for AvgState {
     #[inline]
     fn integrate<V: Volume>(&mut self, span: Span<'_, V>) -> u64 {
         let (k0, k1) = (span.start, span.end.min(span.seg.count));
-        let mut sum = 0.0f32;
-        for k in k0..k1 {
-            sum += span.ctx.volume.sample(span.seg.pos(k));
-        }
+        let sum = fold_values(span.ctx.volume, span.seg, k0, k1, 0.0f32, |s, v| s + v);
         let n = k1.saturating_sub(k0) as u64;
         self.sum += sum as f64;
         self.count += n;

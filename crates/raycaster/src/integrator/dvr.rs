@@ -2,9 +2,11 @@
 
 use glam::{UVec3, Vec3, Vec4};
 
+use super::batch::{CornerCache, SampleBatch};
 use super::{FrameContext, Integrator, Occupancy, RaySegment, Span};
 use crate::accel::RunKind;
-use crate::volume::{Volume, interpolate, stencil_gradient};
+use crate::simd::{self, Isa, Kernel, LANES};
+use crate::volume::{Volume, stencil_gradient};
 
 /// Accumulated colour (premultiplied) and opacity of a ray.
 #[derive(Debug, Clone, Copy, Default)]
@@ -23,31 +25,42 @@ impl Integrator for DvrState {
     const OCCUPANCY: Occupancy = Occupancy::Visible;
 
     /// Composites the span's samples front to back; uniform macrocells in
-    /// closed form.
+    /// closed form. Consecutive runs to be marched are marched as one, so
+    /// batches stay full across macrocell boundaries.
     #[inline]
     fn integrate<V: Volume>(&mut self, span: Span<'_, V>) -> u64 {
         let (ctx, seg) = (span.ctx, span.seg);
         let mut taken = 0u64;
         let threshold = ctx.ert.unwrap_or(f32::INFINITY);
+        // Samples `pending.0..pending.1` still to march.
+        let mut pending = (0u32, 0u32);
         for run in span.runs() {
-            if self.terminated {
-                break;
+            let march = match run.kind {
+                RunKind::Empty => false,
+                RunKind::Cell(i) => !ctx.macrocells.uniform[i],
+                RunKind::Unknown => true,
+            };
+            if march && run.start == pending.1 {
+                pending.1 = run.end;
+                continue;
             }
-            let n = run.end - run.start;
-            match run.kind {
-                RunKind::Empty => {}
-                RunKind::Cell(i) if ctx.macrocells.uniform[i] => {
-                    let v = ctx.macrocells.ranges[i].0;
-                    taken += self.composite_uniform(ctx, v, n, threshold);
+            taken += self.march(ctx, seg, pending.0, pending.1, threshold);
+            if self.terminated {
+                return taken;
+            }
+            pending = (run.start, run.start);
+            if march {
+                pending.1 = run.end;
+            } else if let RunKind::Cell(i) = run.kind {
+                let v = ctx.macrocells.ranges[i].0;
+                taken += self.composite_uniform(ctx, v, run.end - run.start, threshold);
+                if self.terminated {
+                    return taken;
                 }
-                RunKind::Cell(_) | RunKind::Unknown => {
-                    let (taken_here, done) = self.march(ctx, seg, run.start, run.end, threshold);
-                    taken += taken_here;
-                    self.terminated |= done;
-                }
+                pending = (run.end, run.end);
             }
         }
-        taken
+        taken + self.march(ctx, seg, pending.0, pending.1, threshold)
     }
 
     fn is_done(&self) -> bool {
@@ -60,9 +73,8 @@ impl Integrator for DvrState {
 }
 
 impl DvrState {
-    /// Samples `k..end` one by one. Kept apart from the skipping logic and
-    /// working on local copies of the state, so the hot loop keeps everything
-    /// in registers. Returns (samples taken, terminated).
+    /// Samples `k..end` in batches, compositing front to back, in the best
+    /// instruction set. Returns the samples taken.
     #[inline(always)]
     fn march<V: Volume>(
         &mut self,
@@ -71,63 +83,96 @@ impl DvrState {
         k: u32,
         end: u32,
         threshold: f32,
-    ) -> (u64, bool) {
+    ) -> u64 {
+        if k >= end {
+            return 0;
+        }
+        simd::dispatch(March {
+            state: self,
+            ctx,
+            seg,
+            k,
+            end,
+            threshold,
+        })
+    }
+
+    /// The marching loop: values and table positions a batch at a time,
+    /// then lookup, shading and compositing of the lanes that may be
+    /// visible, in order. Works on local copies of the state, so the loop
+    /// keeps them in registers.
+    #[inline(always)]
+    fn march_lanes<V: Volume, I: Isa>(
+        &mut self,
+        isa: I,
+        ctx: &FrameContext<'_, V>,
+        seg: &RaySegment,
+        k: u32,
+        end: u32,
+        threshold: f32,
+    ) -> u64 {
         let volume = ctx.volume;
         let lut = ctx.lut;
         let shading = ctx.shading;
-        let (origin, dir, t_in, step) = (seg.origin, seg.dir, seg.t_in, seg.step);
         let mut color = self.color;
         let mut alpha = self.alpha;
+        let mut taken = (end - k) as u64;
         let mut done = false;
-        let start = k;
-        let mut k = k;
-        // Consecutive samples often fall in the same interpolation cell
-        // (several per voxel at fine steps): keep its corner values, and its
-        // gradient stencil once loaded, instead of re-reading the volume.
         let inv_two_spacing = 0.5 / volume.grid().spacing;
-        let no_cell = UVec3::splat(u32::MAX);
-        let (mut cell, mut corners) = (no_cell, [0.0f32; 8]);
-        let (mut wings_cell, mut wings) = (no_cell, None);
-        while k < end {
-            let p = origin + dir * (t_in + k as f32 * step);
-            k += 1;
-            let at = volume.locate(p);
-            if at.cell != cell {
-                cell = at.cell;
-                corners = volume.corners(cell);
-            }
-            let e = lut.lookup(interpolate(&corners, at.frac));
-            if e.w <= 0.0 {
-                continue;
-            }
-            let mut rgb = e.truncate();
-            if let Some(ph) = &shading {
-                if wings_cell != cell {
-                    wings_cell = cell;
-                    // A stencil of 32 equal values (inside a homogeneous
-                    // region) has a zero gradient: no shading, no arithmetic.
-                    wings = volume.wings(cell).map(|w| (w, is_flat(&corners, &w)));
+        let mut batch = SampleBatch::default();
+        let mut cache = CornerCache::default();
+        // A cell's gradient stencil, kept while consecutive visible samples
+        // stay in it.
+        let (mut wings_cell, mut wings) = (UVec3::splat(u32::MAX), None);
+        let mut b = k;
+        'march: while b < end {
+            let len = ((end - b) as usize).min(LANES);
+            batch.fill(isa, volume, seg, b, len, &mut cache);
+            let (x, visible) = lut.visible_lanes(isa, &batch.value);
+            let mut lanes = visible & ((1 << len) - 1);
+            while lanes != 0 {
+                let l = lanes.trailing_zeros() as usize;
+                lanes &= lanes - 1;
+                let e = lut.lookup_at(x[l], batch.value[l]);
+                if e.w <= 0.0 {
+                    continue;
                 }
-                let g = match &wings {
-                    Some((_, true)) => Vec3::ZERO,
-                    Some((w, false)) => stencil_gradient(&corners, w, at.frac, inv_two_spacing),
-                    None => volume.gradient(p),
-                };
-                if let Some((diffuse, spec)) = ph.terms(g, seg.world_dir) {
-                    rgb = rgb * diffuse + Vec3::splat(e.w * spec);
+                let mut rgb = e.truncate();
+                if let Some(ph) = &shading {
+                    let (cell, corners) = (batch.cell(l), batch.corners(l));
+                    if wings_cell != cell {
+                        wings_cell = cell;
+                        // A stencil of 32 equal values (inside a homogeneous
+                        // region) has a zero gradient: no shading, no
+                        // arithmetic.
+                        wings = volume.wings(cell).map(|w| (w, is_flat(&corners, &w)));
+                    }
+                    let g = match &wings {
+                        Some((_, true)) => Vec3::ZERO,
+                        Some((w, false)) => {
+                            stencil_gradient(&corners, w, batch.frac(l), inv_two_spacing)
+                        }
+                        None => volume.gradient(seg.pos(b + l as u32)),
+                    };
+                    if let Some((diffuse, spec)) = ph.terms(g, seg.world_dir) {
+                        rgb = rgb * diffuse + Vec3::splat(e.w * spec);
+                    }
+                }
+                let w = 1.0 - alpha;
+                color += w * rgb;
+                alpha += w * e.w;
+                if alpha >= threshold {
+                    done = true;
+                    taken = (b - k) as u64 + l as u64 + 1;
+                    break 'march;
                 }
             }
-            let w = 1.0 - alpha;
-            color += w * rgb;
-            alpha += w * e.w;
-            if alpha >= threshold {
-                done = true;
-                break;
-            }
+            b += len as u32;
         }
         self.color = color;
         self.alpha = alpha;
-        ((k - start) as u64, done)
+        self.terminated |= done;
+        taken
     }
 
     /// Composites `n` samples of the constant value `v` in closed form: with
@@ -177,4 +222,31 @@ fn is_flat(c: &[f32; 8], w: &[f32; 24]) -> bool {
     c.iter()
         .chain(w.iter())
         .fold(true, |all, &x| all & (x == v))
+}
+
+/// [`DvrState::march_lanes`] as a [`Kernel`].
+struct March<'a, 'c, V: Volume> {
+    state: &'a mut DvrState,
+    ctx: &'a FrameContext<'c, V>,
+    seg: &'a RaySegment,
+    k: u32,
+    end: u32,
+    threshold: f32,
+}
+
+impl<V: Volume> Kernel for March<'_, '_, V> {
+    type Output = u64;
+
+    #[inline(always)]
+    fn run<I: Isa>(self, isa: I) -> u64 {
+        let March {
+            state,
+            ctx,
+            seg,
+            k,
+            end,
+            threshold,
+        } = self;
+        state.march_lanes(isa, ctx, seg, k, end, threshold)
+    }
 }

@@ -2,6 +2,7 @@
 
 use glam::Vec4;
 
+use super::batch::fold_values;
 use super::{FrameContext, Integrator, Span};
 use crate::accel::RunKind;
 use crate::volume::Volume;
@@ -38,9 +39,7 @@ impl Integrator for MipState {
             if run.kind == RunKind::Empty {
                 continue;
             }
-            for k in run.start..run.end {
-                self.max = self.max.max(ctx.volume.sample(seg.pos(k)));
-            }
+            self.max = fold_values(ctx.volume, seg, run.start, run.end, self.max, f32::max);
             taken += (run.end - run.start) as u64;
         }
         taken

@@ -13,6 +13,7 @@
 //! [`RenderMode`] variant, and its arm in [`RenderMode::visit`].
 
 mod avg;
+mod batch;
 mod dvr;
 mod iso;
 mod mip;

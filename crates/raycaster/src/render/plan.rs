@@ -1,6 +1,8 @@
 //! Per-frame preparation shared by all renderers: the validated camera and
-//! step, the tabulated TF and the skip grid (cached while TF, step and mode
-//! stay the same).
+//! step, the tabulated TF and the skip grid (cached per TF, step and mode,
+//! for the last few of them: an interactive client alternates between
+//! coarse-step previews and full-step frames, and must not rebuild both
+//! tables at every switch).
 
 use std::sync::Arc;
 
@@ -25,10 +27,16 @@ struct PlanKey {
     iso: u32,
 }
 
-/// The TF table and skip grid of the last frame, reused while they still apply.
+/// How many (TF, step, mode) combinations a [`PlanCache`] keeps: enough for
+/// the steps of a client's preview and refinement levels.
+const PLAN_CACHE_ENTRIES: usize = 6;
+
+/// The TF tables and skip grids of the last few frames, reused while they
+/// still apply; the least recently used is dropped first.
 #[derive(Debug, Default)]
 pub struct PlanCache {
-    last: Option<(PlanKey, Arc<(TfLut, SkipGrid)>)>,
+    /// Most recently used first.
+    entries: Vec<(PlanKey, Arc<(TfLut, SkipGrid)>)>,
 }
 
 impl PlanCache {
@@ -58,16 +66,26 @@ impl PlanCache {
                 Occupancy::Visible | Occupancy::Every => 0,
             },
         };
-        if let Some((k, v)) = &self.last
-            && *k == key
-        {
-            return v.clone();
+        if let Some(i) = self.entries.iter().position(|(k, _)| *k == key) {
+            let hit = self.entries.remove(i);
+            let v = hit.1.clone();
+            self.entries.insert(0, hit);
+            return v;
         }
+        // Another scene's tables can never be used again.
+        self.entries.retain(|(k, _)| k.scene == key.scene);
+        self.entries.truncate(PLAN_CACHE_ENTRIES - 1);
         let lut = TfLut::new(tf, step);
         let skip = occupancy.skip_grid(scene.macrocells(), &lut, options.iso_value);
         let v = Arc::new((lut, skip));
-        self.last = Some((key, v.clone()));
+        self.entries.insert(0, (key, v.clone()));
         v
+    }
+
+    /// How many tables are cached.
+    #[cfg(test)]
+    fn len(&self) -> usize {
+        self.entries.len()
     }
 }
 
@@ -155,5 +173,38 @@ impl FramePlan {
             iso_value: options.iso_value,
             avg_norm: <V::Sample as crate::sample::Sample>::TYPE.max_value(),
         }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::volume::{AnyVolume, Grid};
+    use glam::{UVec3, Vec3};
+
+    #[test]
+    fn alternating_steps_reuse_their_tables_and_old_ones_are_dropped() {
+        let grid = Grid::new(UVec3::splat(8), Vec3::ONE);
+        let scene = Scene::new(AnyVolume::from_fn(grid, |v| (v.x * 30) as u8));
+        let tf = TransferFunction::preset("ramp", crate::sample::SampleType::U8).unwrap();
+        let options = RenderOptions::default();
+        let mut cache = PlanCache::default();
+        let fine = cache.get(&scene, &tf, 0.5, &options);
+        let coarse = cache.get(&scene, &tf, 1.0, &options);
+        assert!(!Arc::ptr_eq(&fine, &coarse));
+        // Back and forth: the same tables, nothing rebuilt.
+        assert!(Arc::ptr_eq(&cache.get(&scene, &tf, 0.5, &options), &fine));
+        assert!(Arc::ptr_eq(&cache.get(&scene, &tf, 1.0, &options), &coarse));
+        assert_eq!(cache.len(), 2);
+        // Many other steps: bounded, the least recently used goes first.
+        for k in 0..PLAN_CACHE_ENTRIES {
+            cache.get(&scene, &tf, 2.0 + k as f32, &options);
+        }
+        assert_eq!(cache.len(), PLAN_CACHE_ENTRIES);
+        assert!(!Arc::ptr_eq(&cache.get(&scene, &tf, 0.5, &options), &fine));
+        // A new scene drops the old scene's tables.
+        let other = Scene::new(AnyVolume::from_fn(grid, |v| (v.y * 30) as u8));
+        cache.get(&other, &tf, 0.5, &options);
+        assert_eq!(cache.len(), 1);
     }
 }

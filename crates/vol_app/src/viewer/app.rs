@@ -18,6 +18,7 @@ use raycaster::prelude::*;
 use super::camera_control::OrbitCamera;
 use super::dialogs::{Answer, Dialogs, Purpose};
 use super::loading::{Histogram, LoadJob, Loaded, Source, VolumeInfo};
+use super::progressive::Progressive;
 use super::render_link::{RenderLink, RenderRequest, RenderedFrame};
 use super::state::Settings;
 use super::tf_editor::TfEditor;
@@ -62,6 +63,11 @@ pub struct ViewerApp {
     start: Option<StartOptions>,
     pub(super) camera: OrbitCamera,
     pub(super) link: RenderLink,
+    /// Which level to render next (previews, then refinement).
+    pub(super) progressive: Progressive,
+    /// The full-quality request for the view of the last UI frame (to tell
+    /// when the view changes).
+    pub(super) last_view: Option<RenderRequest>,
     pub(super) last_request: Option<RenderRequest>,
     pub(super) shown: Option<ShownFrame>,
     pub(super) render_error: Option<String>,
@@ -71,7 +77,7 @@ pub struct ViewerApp {
     pub(super) dialogs: Dialogs,
     pub(super) path_input: String,
     /// A continuous control (camera slider, TF point, iso slider) is being
-    /// dragged: in adaptive mode this renders previews, like camera motion.
+    /// dragged: it renders previews and no refinement, like camera motion.
     pub(super) controls_moving: bool,
     frames_received: u64,
     pub(super) last_scroll: Option<Instant>,
@@ -95,6 +101,8 @@ impl ViewerApp {
             loading: None,
             start: None,
             link,
+            progressive: Progressive::default(),
+            last_view: None,
             last_request: None,
             shown: None,
             render_error: None,
@@ -170,9 +178,17 @@ impl ViewerApp {
         self.loading.is_some()
     }
 
-    /// True while the newest render request has not been answered.
+    /// True while frames of the current view are still to come: the newest
+    /// request has not been answered, or refinement levels are left.
     pub fn is_rendering(&self) -> bool {
-        self.link.is_busy()
+        self.link.is_busy() || (self.settings.progressive && self.progressive.is_refining())
+    }
+
+    /// Aims preview frames at `budget` instead of
+    /// [`PREVIEW_BUDGET`](super::progressive::PREVIEW_BUDGET) (zero: always
+    /// the coarsest preview level).
+    pub fn set_preview_budget(&mut self, budget: std::time::Duration) {
+        self.progressive.set_budget(budget);
     }
 
     /// Frames received from the renderer so far.
@@ -399,6 +415,8 @@ impl ViewerApp {
             self.remember_dir(&p);
         }
         self.camera = OrbitCamera::framing(&scene.grid().bounds(), self.canvas_aspect);
+        // Frame costs learned on the previous volume say nothing of this one.
+        self.progressive.reset();
         self.volume = Some(Volume {
             scene,
             info,
@@ -409,6 +427,12 @@ impl ViewerApp {
     fn poll_frames(&mut self, ctx: &egui::Context) {
         match self.link.poll() {
             Some(Ok(f)) => {
+                self.progressive.arrived(
+                    f.id,
+                    f.level,
+                    [f.camera.width, f.camera.height],
+                    f.frame.stats.time,
+                );
                 let size = [f.frame.width as usize, f.frame.height as usize];
                 let image = egui::ColorImage::from_rgb(size, &f.frame.rgb);
                 match &mut self.shown {
@@ -425,7 +449,10 @@ impl ViewerApp {
                 self.frames_received += 1;
                 self.render_error = None;
             }
-            Some(Err(e)) => self.render_error = Some(e.message),
+            Some(Err(e)) => {
+                self.progressive.failed(e.id);
+                self.render_error = Some(e.message);
+            }
             None => {}
         }
     }

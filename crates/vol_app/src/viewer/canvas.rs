@@ -9,8 +9,9 @@ use glam::Vec2;
 use raycaster::prelude::*;
 
 use super::app::ViewerApp;
+use super::progressive::{Level, Stage};
 use super::render_link::RenderRequest;
-use super::state::{PREVIEW_SCALE, ResolutionChoice};
+use super::state::ResolutionChoice;
 
 /// How long after the last wheel event the camera counts as still moving.
 const SCROLL_SETTLE: Duration = Duration::from_millis(250);
@@ -31,8 +32,10 @@ impl ViewerApp {
         let response = ui.allocate_rect(rect, Sense::click_and_drag());
         response
             .widget_info(|| egui::WidgetInfo::labeled(egui::Role::Canvas, true, "Volume canvas"));
+        // A reduced frame is drawn stretched to its full size (the texture's
+        // bilinear filter upsamples it).
         let image_rect = self.shown.as_ref().map_or(rect, |s| {
-            fit(rect, s.frame.frame.width, s.frame.frame.height)
+            fit(rect, s.frame.camera.width, s.frame.camera.height)
         });
         let interacting = self.camera_input(ui, &response, image_rect.height());
         self.canvas_aspect = rect.aspect_ratio();
@@ -41,12 +44,7 @@ impl ViewerApp {
             (rect.width() * ppp).round() as u32,
             (rect.height() * ppp).round() as u32,
         ];
-        if let Some(req) = self.wanted_request(px, interacting)
-            && self.last_request.as_ref() != Some(&req)
-        {
-            self.link.request(req.clone());
-            self.last_request = Some(req);
-        }
+        self.request_next_frame(px, interacting);
         let painter = ui.painter_at(rect);
         painter.rect_filled(rect, 0.0, Color32::BLACK);
         if let Some(s) = &self.shown {
@@ -107,22 +105,50 @@ impl ViewerApp {
         response.dragged() || scrolling || self.controls_moving
     }
 
-    /// What should be on screen for a canvas of `canvas_px` pixels.
-    fn wanted_request(&self, canvas_px: [u32; 2], interacting: bool) -> Option<RenderRequest> {
+    /// Sends the next frame of the progressive refinement, if one is due
+    /// (see [`progressive`](super::progressive)): a preview when the view
+    /// changed, else the next refinement level once the camera is still.
+    fn request_next_frame(&mut self, canvas_px: [u32; 2], interacting: bool) {
+        let Some(view) = self.wanted_view(canvas_px) else {
+            return;
+        };
+        let changed = self.last_view.as_ref() != Some(&view);
+        let full = [view.camera.width, view.camera.height];
+        self.last_view = Some(view.clone());
+        if !self.settings.progressive {
+            // Every frame at full quality, one request per change.
+            self.progressive.settle();
+            if changed {
+                self.link.request(view.clone());
+                self.last_request = Some(view);
+            }
+            return;
+        }
+        let Some(planned) = self.progressive.next(changed, interacting, full) else {
+            return;
+        };
+        let request = RenderRequest {
+            level: planned.level,
+            preview: planned.stage == Stage::Preview,
+            ..view
+        };
+        let id = self.link.request(request.clone());
+        self.progressive.sent(id);
+        self.last_request = Some(request);
+    }
+
+    /// The full-quality request for what should be on screen for a canvas
+    /// of `canvas_px` pixels.
+    fn wanted_view(&self, canvas_px: [u32; 2]) -> Option<RenderRequest> {
         let volume = self.volume.as_ref()?;
         let s = &self.settings;
         if canvas_px[0] < 8 || canvas_px[1] < 8 {
             return None;
         }
-        let (step, preview) = s.step.step(volume.scene.grid(), interacting);
-        let [mut w, mut h] = match s.resolution {
+        let [w, h] = match s.resolution {
             ResolutionChoice::Canvas => canvas_px,
             ResolutionChoice::Fixed => [s.fixed_size; 2],
         };
-        if preview {
-            w = (w as f32 * PREVIEW_SCALE) as u32;
-            h = (h as f32 * PREVIEW_SCALE) as u32;
-        }
         let (w, h) = (w.clamp(16, 4096), h.clamp(16, 4096));
         Some(RenderRequest {
             scene: volume.scene.clone(),
@@ -130,7 +156,7 @@ impl ViewerApp {
             tf: s.tf.clone(),
             options: RenderOptions {
                 mode: s.mode,
-                step: Some(step),
+                step: Some(s.full_step(volume.scene.grid())),
                 ert: s.ert,
                 ess: s.ess,
                 shading: s.shading,
@@ -143,17 +169,24 @@ impl ViewerApp {
             } else {
                 s.threads
             },
-            preview,
+            level: Level::FULL,
+            preview: false,
         })
     }
 
-    /// The status line: frame time, samples, renderer, size, step.
+    /// The status line: the frame's refinement level, time, samples,
+    /// renderer, size, step.
     pub(super) fn status_line(&mut self, ui: &mut Ui) {
         ui.horizontal(|ui| {
             if let Some(f) = self.shown.as_ref().map(|s| &s.frame) {
                 let st = &f.frame.stats;
+                let stage = match (f.level == Level::FULL, f.preview) {
+                    (true, _) => "full quality".to_string(),
+                    (false, true) => format!("preview {}", f.level.label()),
+                    (false, false) => format!("refining {}", f.level.label()),
+                };
                 ui.monospace(format!(
-                    "{:.1} ms · {} samples · {} rays · {} ×{} · {}×{} · step {}{}",
+                    "{stage} · {:.1} ms · {} samples · {} rays · {} ×{} · {}×{} · step {}",
                     st.time.as_secs_f64() * 1e3,
                     si(st.samples as f64),
                     si(st.rays as f64),
@@ -162,13 +195,16 @@ impl ViewerApp {
                     f.frame.width,
                     f.frame.height,
                     raycaster::units::value(f.step),
-                    if f.preview { " (preview)" } else { "" },
                 ));
             } else {
                 ui.monospace("no frame yet");
             }
-            if self.link.is_busy() {
-                ui.spinner();
+            // A still label, not an animated spinner: a spinner repaints the
+            // window continuously, and with software OpenGL (no GPU, where
+            // this viewer is meant to run) every repaint takes CPU time
+            // from the frame being rendered.
+            if self.is_rendering() {
+                ui.weak("rendering…");
             }
             if let Some(e) = &self.render_error {
                 ui.colored_label(Color32::from_rgb(255, 110, 100), e);

@@ -10,6 +10,7 @@
 //! | [`camera_control`] | orbit / pan / zoom math |
 //! | [`loading`] | opening volumes on a background thread, with progress |
 //! | [`render_link`] | the renderer on its own thread, newest request wins |
+//! | [`progressive`] | previews within a time budget while the view changes, refinement ¼ → ½ → full when still |
 //! | [`dialogs`] | native file dialogs on a background thread |
 //!
 //! [`ViewerApp`] runs without a window too: give it an [`egui::Context`] and
@@ -21,6 +22,7 @@ mod canvas;
 pub mod dialogs;
 pub mod loading;
 mod panels;
+pub mod progressive;
 pub mod render_link;
 pub mod state;
 pub mod tf_editor;

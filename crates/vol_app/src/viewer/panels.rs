@@ -11,7 +11,7 @@ use raycaster::units::{bytes, significant, value as format_value};
 use super::app::ViewerApp;
 use super::dialogs::Purpose;
 use super::loading::{Source, VolumeInfo};
-use super::state::{MODES, ResolutionChoice, StepChoice, max_threads, mode_label};
+use super::state::{MODES, ResolutionChoice, STEP_FACTOR_RANGE, max_threads, mode_label};
 
 impl ViewerApp {
     /// All sections of the left panel.
@@ -166,17 +166,20 @@ impl ViewerApp {
         );
         ui.checkbox(&mut s.ert, "Early ray termination (ERT)");
         ui.checkbox(&mut s.ess, "Empty-space skipping (ESS)");
-        ui.horizontal(|ui| {
-            ui.label("Step:");
-            ui.radio_value(&mut s.step, StepChoice::Fine, "Fine")
-                .on_hover_text("0.2 × the smallest voxel spacing");
-            ui.radio_value(&mut s.step, StepChoice::Coarse, "Coarse")
-                .on_hover_text("0.9 × the smallest voxel spacing");
-            ui.radio_value(&mut s.step, StepChoice::Adaptive, "Adaptive")
-                .on_hover_text(
-                    "Coarse and at half resolution while the camera moves, fine when it stops",
-                );
-        });
+        let step = egui::Slider::new(&mut s.step_factor, STEP_FACTOR_RANGE)
+            .logarithmic(true)
+            .text("Step × smallest spacing");
+        let step = ui.add(step).on_hover_text(
+            "Sampling step of full-quality frames, in units of the smallest voxel spacing \
+             (default 0.5, as `vol_app render`)",
+        );
+        self.controls_moving |= step.dragged();
+        ui.checkbox(&mut s.progressive, "Progressive refinement")
+            .on_hover_text(
+                "While the view changes: reduced size and a coarser step, chosen to render \
+                 fast; once still: refined ¼ → ½ → full resolution. Off: every frame at full \
+                 quality",
+            );
         ui.horizontal(|ui| {
             ui.label("Resolution:");
             ui.radio_value(&mut s.resolution, ResolutionChoice::Canvas, "Canvas");

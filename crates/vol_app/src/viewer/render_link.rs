@@ -8,10 +8,14 @@
 //! - a new request supersedes a full-quality frame in progress at once (the
 //!   front cancels it between tiles), so starting to drag the camera never
 //!   waits for a slow frame;
-//! - while a *preview* frame (camera moving) is in progress, the newest
+//! - while a *preview* frame (the first, fast frame of a changed view, see
+//!   [`progressive`](super::progressive)) is in progress, the newest
 //!   request waits on this side and replaces any older waiting one; it is
 //!   sent when the preview arrives. Previews are fast, so a drag shows a
 //!   steady stream of frames instead of cancelling every one of them.
+//!
+//! A request's [`Level`] (reduced size, coarser step) goes to the front as
+//! its [`Quality`](raycaster::render::Quality); the frame arrives at the reduced size.
 //!
 //! The front is respawned when the renderer or its thread count changes, and
 //! told about a new volume with `set_scene`.
@@ -19,16 +23,16 @@
 use std::sync::Arc;
 
 use raycaster::prelude::*;
-use raycaster::render::{
-    FrameRequest, FrontEvent, FrontOptions, Quality, RendererFront, RendererKind,
-};
+use raycaster::render::{FrameRequest, FrontEvent, FrontOptions, RendererFront, RendererKind};
+
+use super::progressive::Level;
 
 /// Everything one frame depends on.
 #[derive(Debug, Clone)]
 pub struct RenderRequest {
     /// The volume.
     pub scene: Arc<Scene>,
-    /// Camera, including the image size.
+    /// Camera, including the image size at full quality.
     pub camera: Camera,
     /// Transfer function.
     pub tf: TransferFunction,
@@ -38,8 +42,19 @@ pub struct RenderRequest {
     pub renderer: RendererKind,
     /// Worker threads in all for the parallel renderers.
     pub threads: usize,
-    /// A preview rendered while the camera moves (coarse, smaller).
+    /// Size and step reduction of this frame ([`Level::FULL`]: none).
+    pub level: Level,
+    /// A preview: the first frame of a changed view, picked to be fast (let
+    /// finish rather than cancelled by the next request).
     pub preview: bool,
+}
+
+impl RenderRequest {
+    /// The sampling step this request renders with: the options' step times
+    /// the level's multiplier.
+    pub fn step(&self) -> f32 {
+        self.options.step_for(self.scene.grid()) * self.level.step_scale as f32
+    }
 }
 
 impl PartialEq for RenderRequest {
@@ -50,6 +65,7 @@ impl PartialEq for RenderRequest {
             && self.options == other.options
             && self.renderer == other.renderer
             && self.threads == other.threads
+            && self.level == other.level
             && self.preview == other.preview
     }
 }
@@ -61,8 +77,11 @@ pub struct RenderedFrame {
     pub id: u64,
     /// The image and its counters.
     pub frame: Frame,
-    /// The camera it was rendered with.
+    /// The camera it was requested with (its size is the full-quality size;
+    /// `frame` has the level's).
     pub camera: Camera,
+    /// Its size and step reduction.
+    pub level: Level,
     /// True for a preview frame.
     pub preview: bool,
     /// The sampling step used.
@@ -199,8 +218,9 @@ impl RenderLink {
                         id: flight.id,
                         frame,
                         camera: r.camera,
+                        level: r.level,
                         preview: r.preview,
-                        step: r.options.step_for(r.scene.grid()),
+                        step: r.step(),
                         renderer: front.renderer_name(),
                         threads: front.renderer_threads(),
                     })
@@ -233,7 +253,7 @@ impl RenderLink {
             camera: request.camera,
             tf: Arc::new(request.tf.clone()),
             options: request.options.clone(),
-            quality: Quality::FULL,
+            quality: request.level.quality(),
         });
         self.in_flight = Some(InFlight {
             id,
@@ -305,6 +325,7 @@ mod tests {
             options: RenderOptions::default(),
             renderer: RendererKind::Tiles,
             threads: 2,
+            level: Level::FULL,
             preview: false,
         }
     }
@@ -386,6 +407,29 @@ mod tests {
             images.push(f.frame.rgb);
         }
         assert!(images.windows(2).all(|w| w[0] == w[1]));
+    }
+
+    #[test]
+    fn a_reduced_level_arrives_smaller_with_a_longer_step() {
+        let mut link = RenderLink::new(|| {});
+        let full = request(40);
+        link.request(full.clone());
+        let f = wait(&mut link).unwrap();
+        assert_eq!((f.frame.width, f.frame.height), (40, 32));
+        assert_eq!(f.step, 0.5);
+        let id = link.request(RenderRequest {
+            level: Level::new(4, 2),
+            preview: true,
+            ..full
+        });
+        let r = wait(&mut link).unwrap();
+        assert_eq!(r.id, id);
+        assert_eq!((r.frame.width, r.frame.height), (10, 8));
+        assert_eq!((r.camera.width, r.camera.height), (40, 32));
+        assert_eq!(r.step, 1.0);
+        assert_eq!(r.level, Level::new(4, 2));
+        // A sixteenth of the rays, each with about half the samples.
+        assert!(r.frame.stats.samples * 16 < f.frame.stats.samples);
     }
 
     #[test]

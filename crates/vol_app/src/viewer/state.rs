@@ -16,14 +16,11 @@ use serde::{Deserialize, Serialize};
 /// The key of the settings in eframe's storage.
 pub const STORAGE_KEY: &str = "vol_app.viewer.settings";
 
-/// The fine sampling step, in units of the smallest voxel spacing (0.2 is
-/// the benchmark frame's step on unit-spaced data).
-pub const FINE_STEP: f32 = 0.2;
-/// The coarse sampling step, in units of the smallest voxel spacing.
-pub const COARSE_STEP: f32 = 0.9;
-/// Resolution factor of the preview frames rendered while the camera moves in
-/// adaptive mode.
-pub const PREVIEW_SCALE: f32 = 0.5;
+/// The default sampling step at full quality, in units of the smallest
+/// voxel spacing: half of it, as `vol_app render` and the library default.
+pub const DEFAULT_STEP_FACTOR: f32 = 0.5;
+/// The range of the step slider, in units of the smallest voxel spacing.
+pub const STEP_FACTOR_RANGE: std::ops::RangeInclusive<f32> = 0.05..=4.0;
 
 /// The rendering modes, in menu order.
 pub const MODES: [RenderMode; 4] = [
@@ -40,33 +37,6 @@ pub fn mode_label(mode: RenderMode) -> &'static str {
         RenderMode::Mip => "MIP",
         RenderMode::Avg => "X-ray",
         RenderMode::Iso => "Iso",
-    }
-}
-
-/// How long the sampling step is.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize, Default)]
-#[serde(rename_all = "lowercase")]
-pub enum StepChoice {
-    /// Always [`FINE_STEP`].
-    Fine,
-    /// Always [`COARSE_STEP`].
-    Coarse,
-    /// Coarse (and at reduced resolution) while the camera moves, fine when
-    /// it stops.
-    #[default]
-    Adaptive,
-}
-
-impl StepChoice {
-    /// The step in world units for `grid`, and whether the frame is a preview.
-    pub fn step(self, grid: &Grid, interacting: bool) -> (f32, bool) {
-        let unit = grid.spacing.min_element();
-        match self {
-            StepChoice::Fine => (FINE_STEP * unit, false),
-            StepChoice::Coarse => (COARSE_STEP * unit, false),
-            StepChoice::Adaptive if interacting => (COARSE_STEP * unit, true),
-            StepChoice::Adaptive => (FINE_STEP * unit, false),
-        }
     }
 }
 
@@ -105,8 +75,14 @@ pub struct Settings {
     pub ert: bool,
     /// Empty-space skipping.
     pub ess: bool,
-    /// Sampling step.
-    pub step: StepChoice,
+    /// Sampling step of full-quality frames, in units of the smallest voxel
+    /// spacing.
+    pub step_factor: f32,
+    /// Progressive refinement: fast reduced previews while something
+    /// changes, refined to full quality once still (see
+    /// [`progressive`](super::progressive)); off renders every frame at full
+    /// quality.
+    pub progressive: bool,
     /// Image size.
     pub resolution: ResolutionChoice,
     /// Side of the fixed-size image.
@@ -130,7 +106,8 @@ impl Default for Settings {
             threads: max_threads(),
             ert: true,
             ess: true,
-            step: StepChoice::Adaptive,
+            step_factor: DEFAULT_STEP_FACTOR,
+            progressive: true,
             resolution: ResolutionChoice::Canvas,
             fixed_size: 700,
             load_in_ram: false,
@@ -158,6 +135,11 @@ fn preset_or_ramp(name: &str) -> TransferFunction {
 }
 
 impl Settings {
+    /// The sampling step of full-quality frames of `grid`, in world units.
+    pub fn full_step(&self, grid: &Grid) -> f32 {
+        self.step_factor * grid.spacing.min_element()
+    }
+
     /// The settings stored by the last run, or the defaults; values that no
     /// longer make sense (an invalid TF, more threads than cores) are repaired.
     pub fn load(storage: Option<&dyn eframe::Storage>) -> Self {
@@ -181,6 +163,12 @@ impl Settings {
             self.iso_value = defaults.iso_value;
         }
         self.fixed_size = self.fixed_size.clamp(64, 4096);
+        self.step_factor = if self.step_factor.is_finite() {
+            self.step_factor
+                .clamp(*STEP_FACTOR_RANGE.start(), *STEP_FACTOR_RANGE.end())
+        } else {
+            defaults.step_factor
+        };
         if self.last_dir.as_ref().is_some_and(|d| !d.is_dir()) {
             self.last_dir = None;
         }
@@ -198,7 +186,8 @@ mod tests {
         let mut s = Settings {
             mode: RenderMode::Iso,
             ert: false,
-            step: StepChoice::Coarse,
+            step_factor: 0.25,
+            progressive: false,
             ..Settings::default()
         };
         s.tf.points[0].opacity = 0.5;
@@ -216,6 +205,7 @@ mod tests {
         let bad = Settings {
             threads: 10_000,
             fixed_size: 1,
+            step_factor: f32::NAN,
             tf: TransferFunction {
                 interpolation: Default::default(),
                 points: vec![],
@@ -225,15 +215,39 @@ mod tests {
         .repaired();
         assert_eq!(bad.threads, max_threads());
         assert_eq!(bad.fixed_size, 64);
+        assert_eq!(bad.step_factor, DEFAULT_STEP_FACTOR);
+        let far = Settings {
+            step_factor: 100.0,
+            ..Settings::default()
+        }
+        .repaired();
+        assert_eq!(far.step_factor, *STEP_FACTOR_RANGE.end());
         assert_eq!(bad.tf, Settings::default().tf);
     }
 
     #[test]
-    fn adaptive_step_is_coarse_only_while_interacting() {
+    fn the_default_step_is_half_the_smallest_spacing_like_vol_app_render() {
         let grid = Grid::new(UVec3::splat(8), Vec3::new(2.0, 0.5, 1.0));
-        assert_eq!(StepChoice::Fine.step(&grid, true), (0.1, false));
-        assert_eq!(StepChoice::Coarse.step(&grid, false), (0.45, false));
-        assert_eq!(StepChoice::Adaptive.step(&grid, true), (0.45, true));
-        assert_eq!(StepChoice::Adaptive.step(&grid, false), (0.1, false));
+        let s = Settings::default();
+        assert!(s.progressive);
+        assert_eq!(s.full_step(&grid), 0.25);
+        // The library's default step (what `vol_app render` uses without
+        // --step) is the same.
+        let library = raycaster::render::RenderOptions::default().step_for(&grid);
+        assert_eq!(s.full_step(&grid), library);
+        let fine = Settings {
+            step_factor: 0.2,
+            ..s
+        };
+        assert_eq!(fine.full_step(&grid), 0.1);
+    }
+
+    #[test]
+    fn settings_of_an_older_version_keep_what_still_applies() {
+        // An older viewer stored a step choice by name.
+        let back: Settings = serde_json::from_str(r#"{"step": "adaptive", "ert": false}"#).unwrap();
+        assert!(!back.ert);
+        assert_eq!(back.step_factor, DEFAULT_STEP_FACTOR);
+        assert!(back.progressive);
     }
 }

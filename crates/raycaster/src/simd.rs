@@ -1,0 +1,218 @@
+//! [`Isa`]: the instruction set a hot loop is compiled for, chosen at run
+//! time.
+//!
+//! The marching loops are written once, generic over `I: Isa`, with their
+//! lane-wise steps as loops over fixed-size arrays of [`LANES`] values that
+//! the compiler vectorises. Each loop is instantiated twice: for [`Portable`]
+//! (the SSE2 every x86-64 has, or whatever the target is), and inside a
+//! `#[target_feature(enable = "avx2")]` function for [`Avx2`], whose token
+//! only [`Avx2::detect`] hands out. One binary so runs anywhere and uses
+//! 8-wide vectors where the CPU has them. The few operations the compiler
+//! cannot produce from plain loops (a lane permutation, a gather, a mask of
+//! lanes) are the trait's methods, one intrinsic each.
+//!
+//! Both copies do the same arithmetic in the same order (Rust never fuses a
+//! multiply and an add on its own), so they give the same bits.
+
+/// Values per vector: one AVX2 register of `f32`.
+pub const LANES: usize = 8;
+
+/// Code to run compiled for the best instruction set of this CPU: a hot loop
+/// generic over the [`Isa`], handed to [`dispatch`].
+pub trait Kernel {
+    /// What the loop returns.
+    type Output;
+    /// Runs the loop; implementations are `#[inline(always)]`, so that the
+    /// loop is compiled into each instruction set's copy of [`dispatch`].
+    fn run<I: Isa>(self, isa: I) -> Self::Output;
+}
+
+/// Runs `kernel` in the AVX2 copy when the CPU has AVX2, else in the
+/// portable one: the one place a hot loop's instruction set is chosen.
+#[inline]
+pub fn dispatch<K: Kernel>(kernel: K) -> K::Output {
+    #[cfg(target_arch = "x86_64")]
+    if let Some(isa) = Avx2::detect() {
+        // SAFETY: the CPU has AVX2 (the token exists).
+        return unsafe { run_avx2(kernel, isa) };
+    }
+    kernel.run(Portable)
+}
+
+/// [`Kernel::run`] compiled with AVX2 enabled.
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "avx2")]
+fn run_avx2<K: Kernel>(kernel: K, isa: Avx2) -> K::Output {
+    kernel.run(isa)
+}
+
+/// An instruction set, as a token: a value of the type proves the CPU has
+/// it.
+pub trait Isa: Copy {
+    /// `out[l] = table[index[l] % 8]`.
+    fn permute(self, table: &[f32; LANES], index: &[u32; LANES]) -> [f32; LANES];
+
+    /// Bit `l` set when `v[l] != 0`.
+    fn nonzero_mask(self, v: &[u32; LANES]) -> u32;
+
+    /// `out[l] = table[index[l]]`, with each index first clamped to the
+    /// table (which must not be empty).
+    fn gather(self, table: &[f32], index: &[u32; LANES]) -> [f32; LANES];
+}
+
+/// Any CPU: plain Rust, vectorised by the compiler as far as the baseline
+/// instruction set allows.
+#[derive(Debug, Clone, Copy)]
+pub struct Portable;
+
+impl Isa for Portable {
+    #[inline(always)]
+    fn permute(self, table: &[f32; LANES], index: &[u32; LANES]) -> [f32; LANES] {
+        std::array::from_fn(|l| table[index[l] as usize % LANES])
+    }
+
+    #[inline(always)]
+    fn gather(self, table: &[f32], index: &[u32; LANES]) -> [f32; LANES] {
+        let last = table.len() - 1;
+        std::array::from_fn(|l| table[(index[l] as usize).min(last)])
+    }
+
+    #[inline(always)]
+    fn nonzero_mask(self, v: &[u32; LANES]) -> u32 {
+        let mut m = 0;
+        for (l, &x) in v.iter().enumerate() {
+            m |= ((x != 0) as u32) << l;
+        }
+        m
+    }
+}
+
+/// AVX2 (8 lanes of `f32`); only [`Avx2::detect`] makes one.
+#[cfg(target_arch = "x86_64")]
+#[derive(Debug, Clone, Copy)]
+pub struct Avx2(());
+
+#[cfg(target_arch = "x86_64")]
+impl Avx2 {
+    /// The token, when this CPU has AVX2 and the environment variable
+    /// `RAYCASTER_SIMD` is not `portable` (which forces the portable copies,
+    /// to compare the two).
+    #[inline]
+    pub fn detect() -> Option<Self> {
+        use std::sync::atomic::{AtomicU8, Ordering};
+        // 0: not decided yet, 1: portable, 2: AVX2.
+        static CHOICE: AtomicU8 = AtomicU8::new(0);
+        let choice = match CHOICE.load(Ordering::Relaxed) {
+            0 => {
+                let forced = std::env::var_os("RAYCASTER_SIMD").is_some_and(|v| v == "portable");
+                let c = if !forced && std::is_x86_feature_detected!("avx2") { 2 } else { 1 };
+                CHOICE.store(c, Ordering::Relaxed);
+                c
+            }
+            c => c,
+        };
+        (choice == 2).then_some(Avx2(()))
+    }
+}
+
+#[cfg(target_arch = "x86_64")]
+impl Isa for Avx2 {
+    #[inline(always)]
+    fn permute(self, table: &[f32; LANES], index: &[u32; LANES]) -> [f32; LANES] {
+        // SAFETY: an `Avx2` exists only when the CPU has AVX2.
+        unsafe { permute_avx2(table, index) }
+    }
+
+    #[inline(always)]
+    fn gather(self, table: &[f32], index: &[u32; LANES]) -> [f32; LANES] {
+        // SAFETY: an `Avx2` exists only when the CPU has AVX2.
+        unsafe { gather_avx2(table, index) }
+    }
+
+    #[inline(always)]
+    fn nonzero_mask(self, v: &[u32; LANES]) -> u32 {
+        // SAFETY: an `Avx2` exists only when the CPU has AVX2.
+        unsafe { nonzero_mask_avx2(v) }
+    }
+}
+
+/// A compare and a `vmovmskps`.
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "avx2")]
+#[inline]
+fn nonzero_mask_avx2(v: &[u32; LANES]) -> u32 {
+    use std::arch::x86_64::{
+        __m256i, _mm256_castsi256_ps, _mm256_cmpeq_epi32, _mm256_movemask_ps, _mm256_setzero_si256,
+    };
+    // SAFETY: `[u32; 8]` and `__m256i` are both 32 bytes of plain data.
+    let v: __m256i = unsafe { std::mem::transmute(*v) };
+    let zero = _mm256_cmpeq_epi32(v, _mm256_setzero_si256());
+    !(_mm256_movemask_ps(_mm256_castsi256_ps(zero)) as u32) & 0xff
+}
+
+/// One `vpermps`.
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "avx2")]
+#[inline]
+fn permute_avx2(table: &[f32; LANES], index: &[u32; LANES]) -> [f32; LANES] {
+    use std::arch::x86_64::{__m256, __m256i, _mm256_permutevar8x32_ps};
+    // SAFETY: `[f32; 8]`, `[u32; 8]`, `__m256` and `__m256i` are all 32
+    // bytes of plain data, so the transmutes reinterpret bits only.
+    unsafe {
+        let t: __m256 = std::mem::transmute(*table);
+        let i: __m256i = std::mem::transmute(*index);
+        std::mem::transmute(_mm256_permutevar8x32_ps(t, i))
+    }
+}
+
+/// Clamps the indices with `vpminud`, then one `vgatherdps`.
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "avx2")]
+#[inline]
+fn gather_avx2(table: &[f32], index: &[u32; LANES]) -> [f32; LANES] {
+    use std::arch::x86_64::{__m256i, _mm256_i32gather_ps, _mm256_min_epu32, _mm256_set1_epi32};
+    assert!(!table.is_empty() && table.len() <= i32::MAX as usize);
+    // SAFETY: `[u32; 8]` and `__m256i` are both 32 bytes of plain data.
+    let index: __m256i = unsafe { std::mem::transmute(*index) };
+    let last = _mm256_set1_epi32(table.len() as i32 - 1);
+    let index = _mm256_min_epu32(index, last);
+    // SAFETY: every index is at most `table.len() − 1` after the unsigned
+    // minimum, so each of the eight 4-byte reads lies inside `table`; the
+    // result is 32 bytes of plain data reinterpreted as `[f32; 8]`.
+    unsafe { std::mem::transmute(_mm256_i32gather_ps::<4>(table.as_ptr(), index)) }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// Every operation gives the same lanes in both instruction sets, and
+    /// what it is documented to give.
+    #[test]
+    fn avx2_agrees_with_portable() {
+        let table: [f32; LANES] = std::array::from_fn(|i| i as f32 * 1.5 - 2.0);
+        let index = [7, 0, 3, 3, 9, 1, 2, 15];
+        let wrapped: [f32; LANES] = std::array::from_fn(|l| table[index[l] as usize % 8]);
+        assert_eq!(Portable.permute(&table, &index), wrapped);
+        let long: Vec<f32> = (0..20).map(|i| i as f32).collect();
+        let gathered = [7.0, 0.0, 3.0, 3.0, 9.0, 1.0, 2.0, 15.0];
+        assert_eq!(Portable.gather(&long, &index), gathered);
+        let clamped = [0u32, 25, u32::MAX, 19, 4, 5, 6, 7];
+        assert_eq!(
+            Portable.gather(&long, &clamped),
+            [0.0, 19.0, 19.0, 19.0, 4.0, 5.0, 6.0, 7.0]
+        );
+        let v = [0, 1, 0, 5, 0, 0, u32::MAX, 0];
+        assert_eq!(Portable.nonzero_mask(&v), 0b0100_1010);
+        #[cfg(target_arch = "x86_64")]
+        if let Some(avx2) = Avx2::detect() {
+            assert_eq!(avx2.permute(&table, &index), wrapped);
+            assert_eq!(avx2.gather(&long, &index), gathered);
+            assert_eq!(
+                avx2.gather(&long, &clamped),
+                Portable.gather(&long, &clamped)
+            );
+            assert_eq!(avx2.nonzero_mask(&v), 0b0100_1010);
+        }
+    }
+}
