@@ -3,7 +3,9 @@
 //! data is not on this machine) and a 256³ i16 volume written here as raw
 //! (memory-mapped: the cost of opening is the header and the map) and as
 //! big-endian raw (read and byte-swapped into RAM). Each open includes the
-//! macrocell grid that rendering needs (`Scene::new`).
+//! macrocell grid that rendering needs (`Scene::new`). A second group opens
+//! a 384³ bricked `.vol` with `Scene::open` with its macrocell cache and
+//! without (`CachePolicy::Off`: the brick-order pass over the samples).
 //!
 //! Run with `cargo bench --bench formats`.
 
@@ -66,5 +68,39 @@ fn formats(c: &mut Criterion) {
     std::fs::remove_dir_all(&dir).ok();
 }
 
-criterion_group!(benches, formats);
+fn macrocell_cache(c: &mut Criterion) {
+    use raycaster::accel::cache::CachePolicy;
+    use raycaster::scene::SceneOptions;
+    let dir = std::env::temp_dir().join(format!("raycaster-bench-cache-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).expect("temp dir");
+    let path = dir.join("shapes384_block16.vol");
+    let grid = Grid::new(UVec3::splat(384), glam::Vec3::ONE);
+    let volume = AnyVolume::from_fn(grid, |p| {
+        let d = (p.as_vec3() - 192.0).length();
+        if d < 150.0 { (d as u32 % 97) as u8 } else { 0 }
+    });
+    let layout = raycaster::format::vol::VolLayout::Bricked { side: 16 };
+    raycaster::format::vol::write(&path, &volume, layout).expect("write");
+    let mut group = c.benchmark_group("open a 384^3 bricked .vol");
+    group.sample_size(10);
+    for (name, cache) in [
+        ("with its macrocell cache", CachePolicy::Auto),
+        ("without (grid built)", CachePolicy::Off),
+    ] {
+        let options = SceneOptions {
+            cache,
+            cache_dir: Some(dir.join("user-cache")),
+            ..SceneOptions::default()
+        };
+        // Writes the cache before the timed opens.
+        Scene::open(&path, &OpenOptions::default(), &options).expect("open");
+        group.bench_function(name, |b| {
+            b.iter(|| Scene::open(&path, &OpenOptions::default(), &options).expect("open"))
+        });
+    }
+    group.finish();
+    std::fs::remove_dir_all(&dir).ok();
+}
+
+criterion_group!(benches, formats, macrocell_cache);
 criterion_main!(benches);

@@ -23,11 +23,15 @@ fn main() {
 }
 
 fn run(input: &str, output: &str, preset: &str) -> Result<(), raycaster::Error> {
-    // Map the file (no copy), build the empty-space-skipping data once.
-    let volume = raycaster::format::open(input.as_ref(), LoadMode::Map)?;
-    let tf = TransferFunction::preset(preset, volume.sample_type())
+    // Map the file (no copy); build the empty-space-skipping data once, or
+    // read it from the file's macrocell cache when an earlier run wrote one.
+    let opened = Scene::open(input.as_ref(), &Default::default(), &Default::default())?;
+    for warning in &opened.cache.warnings {
+        eprintln!("render_png: warning: {warning}");
+    }
+    let scene = opened.scene;
+    let tf = TransferFunction::preset(preset, scene.volume().sample_type())
         .ok_or_else(|| raycaster::Error::option("tf-preset", format!("unknown preset {preset}")))?;
-    let scene = Scene::new(volume);
     // A camera that frames the whole volume from the +z side.
     let camera = Camera::framing(&scene.grid().bounds(), 512, 512, 45.0);
     // All cores, 16-pixel tiles.

@@ -3,9 +3,19 @@
 //!
 //! Renderers reach the volume's concrete type once per frame through
 //! [`AnyVolume::visit`], never per sample.
+//!
+//! [`Scene::open`] opens a file and finds its macrocell grid in the
+//! file's cache ([`crate::accel::cache`]) when there is a valid one, so
+//! that opening a huge memory-mapped volume reads a few megabytes instead
+//! of the whole file; otherwise it builds the grid and writes the cache.
+
+use std::path::{Path, PathBuf};
 
 use crate::accel::MacrocellGrid;
-use crate::volume::{AnyVolume, Grid, Volume, VolumeVisitor};
+use crate::accel::cache::{self, CacheKey, CacheMiss, CachePolicy, GridShape};
+use crate::error::Result;
+use crate::format::{OpenOptions, Progress, VolumeInfo};
+use crate::volume::{AnyVolume, Grid};
 
 /// A volume and its macrocell value ranges.
 #[derive(Debug)]
@@ -16,33 +26,124 @@ pub struct Scene {
     value_range: (f32, f32),
 }
 
-struct BuildMacrocells(Option<u32>);
-
-impl VolumeVisitor for BuildMacrocells {
-    type Output = MacrocellGrid;
-    fn visit<V: Volume>(self, volume: &V) -> MacrocellGrid {
-        MacrocellGrid::build(
-            volume,
-            self.0
-                .unwrap_or_else(|| default_macrocell(volume.grid().dims)),
-        )
-    }
-}
-
 impl Scene {
     /// Builds the macrocell grid of `volume` (one pass over the data) with
     /// the default macrocell size (see [`default_macrocell`]).
     pub fn new(volume: AnyVolume) -> Self {
-        Self::build(volume, None)
+        Self::with_options(volume, &SceneOptions::default())
     }
 
     /// As [`Scene::new`] with an explicit macrocell side in voxels.
     pub fn with_macrocell(volume: AnyVolume, cell: u32) -> Self {
-        Self::build(volume, Some(cell))
+        Self::with_options(
+            volume,
+            &SceneOptions {
+                macrocell: Some(cell),
+                ..SceneOptions::default()
+            },
+        )
     }
 
-    fn build(volume: AnyVolume, cell: Option<u32>) -> Self {
-        let macrocells = volume.visit(BuildMacrocells(cell));
+    /// Builds the macrocell grid of `volume` as `options` say (side and
+    /// progress; the cache options apply to [`Scene::open`] only), in
+    /// parallel on the current rayon pool.
+    pub fn with_options(volume: AnyVolume, options: &SceneOptions) -> Self {
+        let cell = options
+            .macrocell
+            .unwrap_or_else(|| default_macrocell(volume.grid().dims));
+        let grid = MacrocellGrid::build_any(&volume, cell, options.progress.as_ref());
+        Self::from_grid(volume, grid)
+    }
+
+    /// Opens the volume file `path` (see [`crate::format::open_file`]) and
+    /// makes its scene, reading the macrocell grid from the file's cache
+    /// when a valid one exists and writing one when it is built (see
+    /// [`crate::accel::cache`] for where, and when a cache is stale). A
+    /// cache that cannot be read or written costs a warning in the
+    /// [`CacheReport`], never the open. Files whose samples come from more
+    /// than the one file named (a detached NRRD header, a DICOM series) get
+    /// no cache.
+    pub fn open(path: &Path, open: &OpenOptions, options: &SceneOptions) -> Result<OpenedScene> {
+        let opened = crate::format::open_file(path, open)?;
+        let volume = opened.volume;
+        let cell = options
+            .macrocell
+            .unwrap_or_else(|| default_macrocell(volume.grid().dims))
+            .max(1);
+        let shape = GridShape {
+            sample_type: volume.sample_type(),
+            dims: volume.grid().dims,
+            cell,
+        };
+        let mut report = CacheReport::default();
+        let key = match options.cache {
+            CachePolicy::Off => None,
+            CachePolicy::Auto => cache_key(path, &opened.info, open, &mut report),
+        };
+        let places = match &key {
+            Some(_) => cache_places(path, cell, options.cache_dir.as_deref()),
+            None => Vec::new(),
+        };
+        if let Some(key) = &key {
+            for place in &places {
+                match cache::load(place, key, shape) {
+                    Ok(grid) => {
+                        report.loaded = Some(place.clone());
+                        return Ok(OpenedScene {
+                            scene: Self::from_grid(volume, grid),
+                            info: opened.info,
+                            cache: report,
+                        });
+                    }
+                    Err(CacheMiss::Corrupt(why)) => report.warnings.push(format!(
+                        "{}: ignoring a damaged macrocell cache ({why}); rebuilding it",
+                        place.display()
+                    )),
+                    Err(CacheMiss::Absent | CacheMiss::Stale) => {}
+                }
+            }
+        }
+        let grid = MacrocellGrid::build_any(&volume, cell, options.progress.as_ref());
+        if let Some(key) = &key {
+            let mut failures = Vec::new();
+            for place in &places {
+                let made = match place.parent() {
+                    Some(dir) if !dir.as_os_str().is_empty() => {
+                        std::fs::create_dir_all(dir).map_err(|e| format!("{}: {e}", dir.display()))
+                    }
+                    _ => Ok(()),
+                };
+                match made.and_then(|()| {
+                    cache::store(place, key, shape, &grid).map_err(|e| e.to_string())
+                }) {
+                    Ok(()) => {
+                        report.saved = Some(place.clone());
+                        break;
+                    }
+                    Err(e) => failures.push(e),
+                }
+            }
+            if report.saved.is_none() {
+                report.warnings.push(format!(
+                    "{}: could not save the macrocell cache, so the next open reads the whole volume again ({})",
+                    path.display(),
+                    if failures.is_empty() {
+                        "no per-user cache directory".to_string()
+                    } else {
+                        failures.join("; ")
+                    }
+                ));
+            }
+        }
+        Ok(OpenedScene {
+            scene: Self::from_grid(volume, grid),
+            info: opened.info,
+            cache: report,
+        })
+    }
+
+    /// The scene of `volume` with its grid `macrocells`.
+    fn from_grid(volume: AnyVolume, macrocells: MacrocellGrid) -> Self {
         let value_range = macrocells.value_range();
         static NEXT_ID: std::sync::atomic::AtomicU64 = std::sync::atomic::AtomicU64::new(1);
         Scene {
@@ -77,6 +178,87 @@ impl Scene {
     pub fn value_range(&self) -> (f32, f32) {
         self.value_range
     }
+}
+
+/// How [`Scene::open`] and [`Scene::with_options`] make the acceleration
+/// data.
+#[derive(Debug, Clone, Default, PartialEq)]
+pub struct SceneOptions {
+    /// Macrocell side in voxels; `None` for [`default_macrocell`].
+    pub macrocell: Option<u32>,
+    /// Whether [`Scene::open`] reads and writes the macrocell cache.
+    pub cache: CachePolicy,
+    /// Where caches go (and are looked for) besides the volume's own
+    /// directory; `None` for [`cache::user_cache_dir`].
+    pub cache_dir: Option<PathBuf>,
+    /// Told the fraction of the macrocell grid built (not called when the
+    /// grid comes from the cache).
+    pub progress: Option<Progress>,
+}
+
+/// What [`Scene::open`] did with the macrocell cache.
+#[derive(Debug, Clone, Default, PartialEq)]
+pub struct CacheReport {
+    /// The cache the grid was read from.
+    pub loaded: Option<PathBuf>,
+    /// The cache the grid was written to after building it.
+    pub saved: Option<PathBuf>,
+    /// Caches ignored as damaged, or that could not be written: for the
+    /// user, once per open.
+    pub warnings: Vec<String>,
+}
+
+/// A scene opened from a file.
+#[derive(Debug)]
+pub struct OpenedScene {
+    /// The volume and its acceleration data.
+    pub scene: Scene,
+    /// What the file stores.
+    pub info: VolumeInfo,
+    /// Where the macrocell grid came from or went.
+    pub cache: CacheReport,
+}
+
+/// The cache key of `path`, or `None` when the file gets no cache: when it
+/// is not one regular file holding all the samples (a DICOM series, a
+/// detached header), or when it cannot be read for the key (then with a
+/// warning).
+fn cache_key(
+    path: &Path,
+    info: &VolumeInfo,
+    open: &OpenOptions,
+    report: &mut CacheReport,
+) -> Option<CacheKey> {
+    let meta = std::fs::metadata(path).ok()?;
+    if !meta.is_file() || meta.len() != info.file_bytes {
+        return None;
+    }
+    // How the bytes were read: a raw file read with other dimensions or
+    // type is another volume.
+    let description = match &open.raw {
+        Some(raw) => format!("{} {raw:?}", info.format.name()),
+        None => info.format.name().to_string(),
+    };
+    match CacheKey::of(path, &description) {
+        Ok(key) => Some(key),
+        Err(e) => {
+            report.warnings.push(format!(
+                "{}: no macrocell cache: cannot read the file's fingerprint: {e}",
+                path.display()
+            ));
+            None
+        }
+    }
+}
+
+/// Where the cache of `path` may be, in the order looked in and written:
+/// next to the volume, then in `dir` (or the per-user cache directory).
+fn cache_places(path: &Path, cell: u32, dir: Option<&Path>) -> Vec<PathBuf> {
+    let mut places = vec![cache::sidecar_path(path, cell)];
+    if let Some(dir) = dir.map(Path::to_path_buf).or_else(cache::user_cache_dir) {
+        places.push(cache::cache_path_in(&dir, path, cell));
+    }
+    places
 }
 
 /// The macrocell side used by [`Scene::new`]: the smallest of 4, 8, 16, 32

@@ -177,6 +177,45 @@ impl Storage {
         unsafe { std::slice::from_raw_parts(self.ptr, self.len * self.sample_type.size()) }
     }
 
+    /// Lets the operating system drop this process's mapping of the pages
+    /// that lie wholly inside `bytes` (a range of [`Storage::as_bytes`]) of a
+    /// mapped file; they stay in the page cache, and a later read maps them
+    /// again with the same contents. A pass over the whole file (building the
+    /// macrocell grid without its cache) calls this behind itself, so that
+    /// the process's resident set stays a few slabs and not the file. Does
+    /// nothing for samples in RAM, or where the system refuses.
+    pub fn release_pages(&self, bytes: std::ops::Range<usize>) {
+        #[cfg(unix)]
+        if let Owner::Mapped(map) = &self.owner {
+            // A multiple of every page size in use (4, 16 and 64 KiB), so
+            // that the range is page-aligned wherever this runs.
+            const PAGE: usize = 1 << 16;
+            let base = self.ptr as usize - map.as_ptr() as usize;
+            let end = (base + bytes.end.min(self.len * self.sample_type.size())) / PAGE * PAGE;
+            let start = (base + bytes.start).div_ceil(PAGE) * PAGE;
+            if start < end && end <= map.len() {
+                // SAFETY: the map is a shared, read-only mapping of a file
+                // (`Mmap::map`), never written through. Dropping its pages
+                // only unmaps them from this process: the next access faults
+                // them in again from the page cache or the file, with the
+                // bytes the file holds, which are the bytes every `&[S]`
+                // handed out has been reading (the same caveat as the map
+                // itself: another process rewriting the file). It is not a
+                // private or anonymous mapping, whose pages DONTNEED would
+                // zero; `Owner::Mapped` holds only file maps.
+                let _ = unsafe {
+                    map.unchecked_advise_range(
+                        memmap2::UncheckedAdvice::DontNeed,
+                        start,
+                        end - start,
+                    )
+                };
+            }
+        }
+        #[cfg(not(unix))]
+        let _ = bytes;
+    }
+
     /// Number of samples.
     pub fn len(&self) -> usize {
         self.len

@@ -108,6 +108,10 @@ pub struct InfoArgs {
     /// Print one JSON object instead of text.
     #[arg(long)]
     pub json: bool,
+    /// Neither read nor write the macrocell cache (FILE.m<N>.rcidx): build
+    /// the value ranges from the samples.
+    #[arg(long)]
+    pub no_cache: bool,
     /// How to read a headerless file.
     #[command(flatten)]
     pub raw: RawArgs,
@@ -167,8 +171,24 @@ impl RawArgs {
         raycaster::format::OpenOptions {
             mode,
             raw,
-            progress: crate::progress::decode_bar(),
+            progress: crate::progress::bar("decoding"),
         }
+    }
+}
+
+/// The library's scene options: the macrocell side, the cache unless
+/// `no_cache`, and a progress bar for building the macrocell grid.
+pub fn scene_options(macrocell: Option<u32>, no_cache: bool) -> raycaster::scene::SceneOptions {
+    use raycaster::accel::cache::CachePolicy;
+    raycaster::scene::SceneOptions {
+        macrocell,
+        cache: if no_cache {
+            CachePolicy::Off
+        } else {
+            CachePolicy::Auto
+        },
+        cache_dir: None,
+        progress: crate::progress::bar("building the macrocell grid"),
     }
 }
 
@@ -294,6 +314,11 @@ pub struct RenderArgs {
     /// volume's own choice).
     #[arg(long, value_name = "N", value_parser = clap::value_parser!(u32).range(1..=1024))]
     pub macrocell: Option<u32>,
+    /// Neither read nor write the macrocell cache (FILE.m<N>.rcidx, kept
+    /// next to the volume or in the per-user cache directory): build the
+    /// value ranges from the samples.
+    #[arg(long)]
+    pub no_cache: bool,
     /// How to read a headerless file.
     #[command(flatten)]
     pub raw: RawArgs,
@@ -371,6 +396,13 @@ fn parse_size(s: &str) -> Result<(u32, u32), String> {
             .ok_or_else(|| format!("'{t}' is not a size in 1..=16384"))
     };
     Ok((p(w)?, p(h)?))
+}
+
+/// Prints each of `warnings` on stderr as `vol_app: warning: ...`.
+pub fn warn_all(warnings: &[String]) {
+    for w in warnings {
+        eprintln!("vol_app: warning: {w}");
+    }
 }
 
 #[cfg(test)]

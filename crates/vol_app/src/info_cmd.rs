@@ -9,14 +9,21 @@ use crate::cli::InfoArgs;
 
 /// Runs the `info` subcommand.
 pub fn run(args: &InfoArgs) -> Result<(), Error> {
-    let opened = raycaster::format::open_file(&args.file, &args.raw.open_options(LoadMode::Map))?;
+    // The value range comes from the macrocell grid, so from its cache
+    // when there is one: `info` on a huge volume reads no samples.
+    let opened = Scene::open(
+        &args.file,
+        &args.raw.open_options(LoadMode::Map),
+        &crate::cli::scene_options(None, args.no_cache),
+    )?;
+    crate::cli::warn_all(&opened.cache.warnings);
     let info = &opened.info;
-    let volume = opened.volume;
+    let scene = opened.scene;
+    let volume = scene.volume();
     let in_memory = volume.sample_type();
     let storage = volume.storage_kind();
     let layout = volume.layout();
     let memory_bytes = volume.memory_bytes();
-    let scene = Scene::new(volume);
     let (lo, hi) = scene.value_range();
     let grid = *scene.grid();
     let extent = grid.extent();

@@ -1,5 +1,7 @@
-//! A progress bar on stderr for decodes that take time (a gzip NRRD or
-//! NIfTI, a DICOM series), drawn only when stderr is a terminal.
+//! A progress bar on stderr for the parts of opening that take time
+//! (decoding a gzip NRRD or NIfTI or a DICOM series, building the macrocell
+//! grid of a volume without its cache), drawn only when stderr is a
+//! terminal.
 
 use std::io::IsTerminal;
 use std::sync::Arc;
@@ -7,18 +9,20 @@ use std::sync::Arc;
 use indicatif::{ProgressBar, ProgressDrawTarget, ProgressStyle};
 use raycaster::format::Progress;
 
-/// Percent steps of the decode.
+/// Steps of the bar.
 const STEPS: u64 = 1000;
 
-/// The library's progress callback driving a terminal bar, or `None` when
-/// stderr is not a terminal (scripts, `--stats` pipelines). The bar stays
-/// hidden for decodes that finish within indicatif's first redraw.
-pub fn decode_bar() -> Option<Progress> {
+/// The library's progress callback driving a terminal bar labelled
+/// `label`, or `None` when stderr is not a terminal (scripts, `--stats`
+/// pipelines). The bar stays hidden for work that finishes within
+/// indicatif's first redraw.
+pub fn bar(label: &str) -> Option<Progress> {
     if !std::io::stderr().is_terminal() {
         return None;
     }
     let bar = ProgressBar::with_draw_target(Some(STEPS), ProgressDrawTarget::stderr());
-    if let Ok(style) = ProgressStyle::with_template("decoding {wide_bar} {percent}% ETA {eta}") {
+    let template = format!("{label} {{wide_bar}} {{percent}}% ETA {{eta}}");
+    if let Ok(style) = ProgressStyle::with_template(&template) {
         bar.set_style(style);
     }
     let bar = Arc::new(bar);

@@ -18,15 +18,16 @@ pub fn run(args: &RenderArgs) -> Result<(), Error> {
     } else {
         LoadMode::Map
     };
-    let volume = match &args.file {
-        Some(path) => raycaster::format::open_file(path, &args.raw.open_options(mode))?.volume,
-        None => crate::demo::demo_volume(),
+    let scene_options = crate::cli::scene_options(args.macrocell, args.no_cache);
+    let scene = match &args.file {
+        Some(path) => {
+            let opened = Scene::open(path, &args.raw.open_options(mode), &scene_options)?;
+            crate::cli::warn_all(&opened.cache.warnings);
+            opened.scene
+        }
+        None => Scene::with_options(crate::demo::demo_volume(), &scene_options),
     };
-    let sample_type = volume.sample_type();
-    let scene = match args.macrocell {
-        Some(m) => Scene::with_macrocell(volume, m),
-        None => Scene::new(volume),
-    };
+    let sample_type = scene.volume().sample_type();
     let load_ms = ms(load_start.elapsed());
 
     let tf = match (&args.tf, &args.tf_preset) {

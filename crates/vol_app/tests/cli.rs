@@ -532,3 +532,44 @@ fn convert_round_trips_through_every_output_format() {
         "cannot tell the output format",
     );
 }
+
+/// `render` and `info` write the macrocell cache next to the file once and
+/// then read it (same value range), `--no-cache` neither reads nor writes
+/// one, and a damaged cache is one warning line, not a failure.
+#[test]
+fn the_macrocell_cache_is_written_once_and_a_damaged_one_is_a_warning() {
+    let dir = TempDir::new("macrocell_cache");
+    let file = ball_file(&dir, VolLayout::Bricked { side: 8 });
+    let caches = || -> Vec<PathBuf> {
+        std::fs::read_dir(file.parent().unwrap())
+            .unwrap()
+            .map(|e| e.unwrap().path())
+            .filter(|p| p.extension() == Some("rcidx".as_ref()))
+            .collect()
+    };
+    let range = |out: &Output| -> serde_json::Value {
+        let v: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
+        v["value_range"].clone()
+    };
+    let uncached = run_ok(vol_app_on("info", &file).args(["--json", "--no-cache"]));
+    assert_eq!(range(&uncached), serde_json::json!([0.0, 200.0]));
+    run_ok(vol_app_on("render", &file).args(["--stats", "--size", "16x16", "--no-cache"]));
+    assert!(caches().is_empty(), "--no-cache wrote {:?}", caches());
+    run_ok(vol_app_on("render", &file).args(["--stats", "--size", "16x16"]));
+    let written = caches();
+    assert_eq!(written.len(), 1);
+    assert!(written[0].to_string_lossy().ends_with(".vol.m4.rcidx"));
+    let bytes = std::fs::read(&written[0]).unwrap();
+    let cached = run_ok(vol_app_on("info", &file).arg("--json"));
+    assert_eq!(range(&cached), range(&uncached));
+    assert_eq!(std::fs::read(&written[0]).unwrap(), bytes, "rewritten");
+    std::fs::write(&written[0], &bytes[..bytes.len() - 9]).unwrap();
+    let out = run_ok(vol_app_on("render", &file).args(["--stats", "--size", "16x16"]));
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert_eq!(err.lines().count(), 1, "{err}");
+    assert!(
+        err.starts_with("vol_app: warning: ") && err.contains("damaged"),
+        "{err}"
+    );
+    assert_eq!(std::fs::read(&written[0]).unwrap(), bytes, "not repaired");
+}

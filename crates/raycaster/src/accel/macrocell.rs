@@ -1,6 +1,8 @@
 //! The min/max grid over macrocells.
 
-use crate::volume::{Volume, cell_coord};
+use crate::format::Progress;
+use crate::sample::{Sample, SampleTypeVisitor};
+use crate::volume::{AnyAddressing, AnyVolume, Volume, VolumeVisitor, cell_coord};
 use glam::{UVec3, Vec3};
 
 /// Value range per macrocell.
@@ -28,10 +30,90 @@ impl MacrocellGrid {
     /// [`Volume::cell_value_ranges`]).
     pub fn build<V: Volume>(volume: &V, cell: u32) -> Self {
         let cell = cell.max(1);
+        let count = Self::count_for(volume.grid().dims, cell);
+        Self::from_ranges(cell, count, volume.cell_value_ranges(cell, count))
+    }
+
+    /// Builds the grid for a volume of any layout on the current rayon pool,
+    /// telling `progress` the fraction done. A bricked volume is read brick
+    /// by brick in storage order, once, and the pages of a mapped file are
+    /// let go behind the pass (see [`Storage::release_pages`]), so building
+    /// costs memory bandwidth, not resident memory; a linear one is read row
+    /// by row ([`Volume::cell_value_ranges`]).
+    ///
+    /// [`Storage::release_pages`]: crate::storage::Storage::release_pages
+    pub fn build_any(volume: &AnyVolume, cell: u32, progress: Option<&Progress>) -> Self {
+        let cell = cell.max(1);
         let dims = volume.grid().dims;
+        let count = Self::count_for(dims, cell);
+        let report = |f: f32| {
+            if let Some(p) = progress {
+                p.report(f)
+            }
+        };
+        report(0.0);
+        let ranges = match volume.addressing() {
+            AnyAddressing::Bricked(addr) => {
+                struct Bricks<'a> {
+                    volume: &'a AnyVolume,
+                    addr: &'a crate::volume::Bricked,
+                    cell: u32,
+                    count: UVec3,
+                    report: &'a (dyn Fn(f32) + Sync),
+                }
+                impl SampleTypeVisitor for Bricks<'_> {
+                    type Output = Vec<(f32, f32)>;
+                    fn visit<S: Sample>(self) -> Vec<(f32, f32)> {
+                        let storage = self.volume.storage();
+                        let size = std::mem::size_of::<S>();
+                        crate::volume::cell_value_ranges_bricked(
+                            storage.as_slice::<S>(),
+                            self.addr.bricks(),
+                            self.volume.grid().dims,
+                            self.cell,
+                            self.count,
+                            &|samples, done, all| {
+                                storage.release_pages(samples.start * size..samples.end * size);
+                                (self.report)(done as f32 / all as f32);
+                            },
+                        )
+                    }
+                }
+                let report = |f: f32| report(f);
+                volume.sample_type().visit(Bricks {
+                    volume,
+                    addr,
+                    cell,
+                    count,
+                    report: &report,
+                })
+            }
+            AnyAddressing::Linear(_) => {
+                struct Rows(u32, UVec3);
+                impl VolumeVisitor for Rows {
+                    type Output = Vec<(f32, f32)>;
+                    fn visit<V: Volume>(self, v: &V) -> Vec<(f32, f32)> {
+                        v.cell_value_ranges(self.0, self.1)
+                    }
+                }
+                volume.visit(Rows(cell, count))
+            }
+        };
+        let grid = Self::from_ranges(cell, count, ranges);
+        report(1.0);
+        grid
+    }
+
+    /// Cells per axis of a grid of `cell`-voxel cells over `dims` voxels.
+    pub fn count_for(dims: UVec3, cell: u32) -> UVec3 {
+        let cell = cell.max(1);
         let n = |d: u32| if d <= 1 { 1 } else { (d - 1).div_ceil(cell) };
-        let count = UVec3::new(n(dims.x), n(dims.y), n(dims.z));
-        let ranges = volume.cell_value_ranges(cell, count);
+        UVec3::new(n(dims.x), n(dims.y), n(dims.z))
+    }
+
+    /// The grid of cells of side `cell`, `count` per axis, with value
+    /// `ranges` (x slowest, z fastest); finds the uniform cells.
+    pub fn from_ranges(cell: u32, count: UVec3, ranges: Vec<(f32, f32)>) -> Self {
         let uniform = uniform_cells(&ranges, count);
         MacrocellGrid {
             cell,
@@ -108,6 +190,76 @@ fn uniform_cells(ranges: &[(f32, f32)], n: UVec3) -> Vec<bool> {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::volume::Grid;
+
+    /// The brick-order pass of `build_any` against the row pass of `build`
+    /// over many shapes: odd sizes, axes of one voxel, brick sides that do
+    /// and do not divide the cells, cells larger than a brick, every sample
+    /// type.
+    #[test]
+    fn brick_order_ranges_equal_the_row_pass() {
+        let mut rng = fastrand::Rng::with_seed(11);
+        let cases = [
+            (UVec3::new(70, 45, 53), 16, 8),
+            (UVec3::new(31, 16, 17), 16, 4),
+            (UVec3::new(1, 9, 20), 5, 3),
+            (UVec3::new(12, 1, 1), 2, 1),
+            (UVec3::new(1, 1, 1), 4, 8),
+            (UVec3::new(33, 29, 40), 4, 16),
+            (UVec3::new(46, 46, 46), 16, 15),
+        ];
+        for (i, &(dims, side, cell)) in cases.iter().enumerate() {
+            let grid = Grid::new(dims, Vec3::ONE);
+            // Noise over a few flat regions, so that both mixed and uniform
+            // cells occur.
+            let seed = rng.u32(..);
+            let value = move |v: UVec3| {
+                let h = (v.x.wrapping_mul(73856093) ^ v.y.wrapping_mul(19349663))
+                    ^ v.z.wrapping_mul(83492791)
+                    ^ seed;
+                if v.x < dims.x / 2 {
+                    7
+                } else {
+                    (h % 200) as i32 - 60
+                }
+            };
+            macro_rules! check {
+                ($t:ty) => {{
+                    let v = AnyVolume::bricked_from_fn(grid, side, |p| value(p) as $t).unwrap();
+                    let want = v.visit(Build(cell));
+                    let got = MacrocellGrid::build_any(&v, cell, None);
+                    assert_eq!(got.count, want.count, "case {i}");
+                    assert!(got.ranges == want.ranges, "case {i} {}", stringify!($t));
+                    assert!(got.uniform == want.uniform, "case {i}");
+                }};
+            }
+            check!(u8);
+            check!(i16);
+            check!(f32);
+        }
+        struct Build(u32);
+        impl VolumeVisitor for Build {
+            type Output = MacrocellGrid;
+            fn visit<V: Volume>(self, v: &V) -> MacrocellGrid {
+                MacrocellGrid::build(v, self.0)
+            }
+        }
+    }
+
+    #[test]
+    fn build_any_reports_progress_to_completion() {
+        let grid = Grid::new(UVec3::new(40, 20, 20), Vec3::ONE);
+        let v = AnyVolume::bricked_from_fn(grid, 8, |p| p.x as u8).unwrap();
+        let seen = std::sync::Arc::new(parking_lot::Mutex::new(Vec::new()));
+        let s = seen.clone();
+        let p = Progress::new(move |f| s.lock().push(f));
+        MacrocellGrid::build_any(&v, 4, Some(&p));
+        let seen = seen.lock();
+        assert_eq!(seen.first(), Some(&0.0));
+        assert_eq!(seen.last(), Some(&1.0));
+        // One report per brick slab (6 of them) between the ends.
+        assert_eq!(seen.len(), 6 + 2, "{seen:?}");
+    }
 
     #[test]
     fn uniform_cells_match_brute_force() {

@@ -9,7 +9,10 @@
 //! out of the cube of `2d − 1` empty cells around it, so crossing empty space
 //! costs a handful of box exits instead of one test per step. [`SkipRuns`]
 //! hands a ray's samples to an integrator as empty and occupied runs.
+//! [`cache`] keeps a volume file's macrocell grid in a sidecar file, so that
+//! opening it again does not read every sample.
 
+pub mod cache;
 mod macrocell;
 mod runs;
 mod skip;

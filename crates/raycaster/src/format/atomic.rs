@@ -17,13 +17,34 @@ pub fn write_atomically(
     path: &Path,
     fill: impl FnOnce(&mut std::io::BufWriter<std::fs::File>) -> std::io::Result<()>,
 ) -> Result<()> {
+    write_via_temporary(path, true, fill)
+}
+
+/// As [`write_atomically`] without syncing the data to the disk before the
+/// rename: for files that a reader checks on its own and can rebuild (the
+/// macrocell cache, whose checksum catches what a crash may leave), where
+/// waiting for the disk would only slow the program down.
+pub fn write_atomically_unsynced(
+    path: &Path,
+    fill: impl FnOnce(&mut std::io::BufWriter<std::fs::File>) -> std::io::Result<()>,
+) -> Result<()> {
+    write_via_temporary(path, false, fill)
+}
+
+fn write_via_temporary(
+    path: &Path,
+    sync: bool,
+    fill: impl FnOnce(&mut std::io::BufWriter<std::fs::File>) -> std::io::Result<()>,
+) -> Result<()> {
     let tmp = temp_path_for(path);
     let result = (|| {
         let f = std::fs::File::create(&tmp)?;
         let mut w = std::io::BufWriter::with_capacity(1 << 20, f);
         fill(&mut w)?;
         w.flush()?;
-        w.get_ref().sync_data()?;
+        if sync {
+            w.get_ref().sync_data()?;
+        }
         std::fs::rename(&tmp, path)
     })();
     result.map_err(|e| {

@@ -185,6 +185,11 @@ impl AnyVolume {
         &self.addressing
     }
 
+    /// The samples, untyped.
+    pub(crate) fn storage(&self) -> &Storage {
+        &self.storage
+    }
+
     /// RAM or mapped.
     pub fn storage_kind(&self) -> StorageKind {
         self.storage.kind()

@@ -22,7 +22,7 @@ pub use addressing::{Addressing, AnyAddressing, AxisOrder, BrickGrid, Bricked, L
 pub use any::{AnyVolume, VolumeVisitor};
 pub use grid::Grid;
 pub use grid_volume::GridVolume;
-pub(crate) use ranges::fold_range_f32;
+pub(crate) use ranges::{cell_value_ranges_bricked, fold_range_f32};
 
 use glam::{UVec3, Vec3};
 

@@ -104,42 +104,13 @@ impl Histogram {
         };
         let dims = volume.grid().dims;
         let voxels = dims.as_dvec3().element_product();
-        let stride = ((voxels / HISTOGRAM_SAMPLES as f64).cbrt().ceil() as u32).max(1);
         let mut counts = vec![0u64; bins];
         let scale = bins as f32 / (hi - lo);
-        struct Count<'a> {
-            stride: u32,
-            lo: f32,
-            scale: f32,
-            counts: &'a mut [u64],
-            progress: &'a mut dyn FnMut(f32),
+        if volume.storage_kind() == StorageKind::Mapped && voxels > HISTOGRAM_SAMPLES as f64 {
+            count_in_blocks(volume, lo, scale, &mut counts, &mut progress);
+        } else {
+            count_on_lattice(volume, lo, scale, &mut counts, &mut progress);
         }
-        impl raycaster::volume::VolumeVisitor for Count<'_> {
-            type Output = ();
-            fn visit<V: raycaster::volume::Volume>(self, v: &V) {
-                use raycaster::sample::Sample;
-                let dims = v.grid().dims;
-                let (stride, bins) = (self.stride, self.counts.len());
-                let xs = dims.x.div_ceil(stride);
-                for (i, x) in (0..dims.x).step_by(stride as usize).enumerate() {
-                    for y in (0..dims.y).step_by(stride as usize) {
-                        for z in (0..dims.z).step_by(stride as usize) {
-                            let s = v.voxel(UVec3::new(x, y, z)).to_f32();
-                            let b = ((s - self.lo) * self.scale) as usize;
-                            self.counts[b.min(bins - 1)] += 1;
-                        }
-                    }
-                    (self.progress)((i + 1) as f32 / xs as f32);
-                }
-            }
-        }
-        volume.visit(Count {
-            stride,
-            lo,
-            scale,
-            counts: &mut counts,
-            progress: &mut progress,
-        });
         Histogram {
             range,
             lo,
@@ -147,6 +118,120 @@ impl Histogram {
             counts,
         }
     }
+}
+
+/// Counts a regular lattice of at most [`HISTOGRAM_SAMPLES`] voxels (every
+/// voxel of a small volume) into `counts`.
+fn count_on_lattice(
+    volume: &AnyVolume,
+    lo: f32,
+    scale: f32,
+    counts: &mut [u64],
+    progress: &mut dyn FnMut(f32),
+) {
+    let voxels = volume.grid().dims.as_dvec3().element_product();
+    let stride = ((voxels / HISTOGRAM_SAMPLES as f64).cbrt().ceil() as u32).max(1);
+    struct Count<'a> {
+        stride: u32,
+        lo: f32,
+        scale: f32,
+        counts: &'a mut [u64],
+        progress: &'a mut dyn FnMut(f32),
+    }
+    impl raycaster::volume::VolumeVisitor for Count<'_> {
+        type Output = ();
+        fn visit<V: raycaster::volume::Volume>(self, v: &V) {
+            use raycaster::sample::Sample;
+            let dims = v.grid().dims;
+            let (stride, bins) = (self.stride, self.counts.len());
+            let xs = dims.x.div_ceil(stride);
+            for (i, x) in (0..dims.x).step_by(stride as usize).enumerate() {
+                for y in (0..dims.y).step_by(stride as usize) {
+                    for z in (0..dims.z).step_by(stride as usize) {
+                        let s = v.voxel(UVec3::new(x, y, z)).to_f32();
+                        let b = ((s - self.lo) * self.scale) as usize;
+                        self.counts[b.min(bins - 1)] += 1;
+                    }
+                }
+                (self.progress)((i + 1) as f32 / xs as f32);
+            }
+        }
+    }
+    volume.visit(Count {
+        stride,
+        lo,
+        scale,
+        counts,
+        progress,
+    });
+}
+
+/// Samples per block of [`count_in_blocks`]: a page of 8-bit samples, and
+/// one brick of side 16.
+const HISTOGRAM_BLOCK: usize = 4096;
+
+/// Counts [`HISTOGRAM_SAMPLES`] voxels of a memory-mapped volume taken as
+/// whole blocks of consecutive samples spread evenly over its storage, so
+/// that only those few pages of the file are read: a lattice over the whole
+/// grid would touch nearly every page of a huge file (one per brick), which
+/// is the whole file in memory. Padding past the grid's edge in the last
+/// bricks is skipped; the voxels bricks share are counted once per copy.
+fn count_in_blocks(
+    volume: &AnyVolume,
+    lo: f32,
+    scale: f32,
+    counts: &mut [u64],
+    progress: &mut dyn FnMut(f32),
+) {
+    struct Blocks<'a> {
+        volume: &'a AnyVolume,
+        lo: f32,
+        scale: f32,
+        counts: &'a mut [u64],
+        progress: &'a mut dyn FnMut(f32),
+    }
+    impl raycaster::sample::SampleTypeVisitor for Blocks<'_> {
+        type Output = ();
+        fn visit<S: raycaster::sample::Sample>(self) {
+            let Some(samples) = self.volume.samples::<S>() else {
+                return;
+            };
+            let dims = self.volume.grid().dims;
+            let bricks = match self.volume.addressing() {
+                raycaster::volume::AnyAddressing::Bricked(b) => Some(*b.bricks()),
+                raycaster::volume::AnyAddressing::Linear(_) => None,
+            };
+            let len = samples.len();
+            let block = HISTOGRAM_BLOCK.min(len);
+            let n = (HISTOGRAM_SAMPLES as usize / block).clamp(1, len / block);
+            let bins = self.counts.len();
+            for i in 0..n {
+                // Evenly spaced, aligned to blocks (to bricks of 16).
+                let start = if n > 1 {
+                    (len - block) / (n - 1) * i / block * block
+                } else {
+                    0
+                };
+                for (j, s) in samples[start..start + block].iter().enumerate() {
+                    if let Some(b) = &bricks
+                        && b.voxel_at((start + j) as u64, dims).is_none()
+                    {
+                        continue;
+                    }
+                    let b = ((s.to_f32() - self.lo) * self.scale) as usize;
+                    self.counts[b.min(bins - 1)] += 1;
+                }
+                (self.progress)((i + 1) as f32 / n as f32);
+            }
+        }
+    }
+    volume.sample_type().visit(Blocks {
+        volume,
+        lo,
+        scale,
+        counts,
+        progress,
+    });
 }
 
 /// A volume ready to render.
@@ -285,7 +370,19 @@ fn load(
     let start = Instant::now();
     progress.set(Phase::Opening, None);
     wake();
-    let (volume, name, path, file) = match source {
+    // Building the macrocell grid (when its cache is missing) reports its
+    // fraction.
+    let scene_options = {
+        let (p, w) = (progress.clone(), wake.clone());
+        raycaster::scene::SceneOptions {
+            progress: Some(raycaster::format::Progress::new(move |f| {
+                p.set(Phase::Accelerating, Some(f));
+                w();
+            })),
+            ..Default::default()
+        }
+    };
+    let (scene, name, path, file) = match source {
         Source::File(path, mode, raw) => {
             // Decoding (gzip, DICOM slices) reports its fraction.
             let (p, w) = (progress.clone(), wake.clone());
@@ -297,26 +394,31 @@ fn load(
                     w();
                 })),
             };
-            let opened = raycaster::format::open_file(path, &options).map_err(|e| e.to_string())?;
+            let opened = Scene::open(path, &options, &scene_options).map_err(|e| e.to_string())?;
+            let mut info = opened.info;
+            // A cache that could not be read or written is worth a line
+            // among the volume's notes (and on stderr), not a failed load.
+            for w in opened.cache.warnings {
+                eprintln!("vol_app: warning: {w}");
+                info.notes.push(w);
+            }
             (
-                opened.volume,
+                opened.scene,
                 file_name(path),
                 Some(path.clone()),
-                Some(opened.info),
+                Some(info),
             )
         }
         Source::Demo => (
-            crate::demo::demo_volume(),
+            Scene::with_options(crate::demo::demo_volume(), &scene_options),
             "built-in demo".to_string(),
             None,
             None,
         ),
     };
-    progress.set(Phase::Accelerating, None);
-    wake();
+    let volume = scene.volume();
     let (sample_type, layout, storage) =
         (volume.sample_type(), volume.layout(), volume.storage_kind());
-    let scene = Scene::new(volume);
     let value_range = scene.value_range();
     progress.set(Phase::Histogram, Some(0.0));
     wake();
@@ -378,6 +480,42 @@ mod tests {
         for (i, &c) in h.counts.iter().enumerate() {
             assert_eq!(c, if i % 10 == 0 { 30 } else { 0 }, "bin {i}");
         }
+    }
+
+    /// A mapped volume larger than the sample budget is counted in whole
+    /// blocks: about the budget's worth of voxels, spread over the volume
+    /// (both halves show in proportion), and none of the bricks' padding.
+    #[test]
+    fn a_large_mapped_volume_is_counted_in_blocks_without_padding() {
+        let dir = std::env::temp_dir().join(format!("vol_app-hist-{}", std::process::id()));
+        std::fs::create_dir_all(&dir).unwrap();
+        let path = dir.join("halves.vol");
+        let dims = UVec3::splat(131); // 9 bricks of 16 per axis: padded
+        let v = AnyVolume::from_fn(
+            Grid::new(dims, Vec3::ONE),
+            |p| {
+                if p.x < 65 { 7u8 } else { 3 }
+            },
+        );
+        raycaster::format::vol::write(
+            &path,
+            &v,
+            raycaster::format::vol::VolLayout::Bricked { side: 16 },
+        )
+        .unwrap();
+        let mapped = raycaster::format::open(&path, LoadMode::Map).unwrap();
+        assert_eq!(mapped.storage_kind(), StorageKind::Mapped);
+        let h = Histogram::of(&mapped, (0.0, 7.0), |_| {});
+        std::fs::remove_dir_all(&dir).ok();
+        let total: u64 = h.counts.iter().sum();
+        assert!(
+            (HISTOGRAM_SAMPLES / 2..=HISTOGRAM_SAMPLES).contains(&total),
+            "{total}"
+        );
+        assert_eq!(h.counts[0], 0, "padding counted");
+        assert_eq!(total, h.counts[3] + h.counts[7]);
+        let share = h.counts[7] as f64 / total as f64;
+        assert!((0.4..0.6).contains(&share), "{share}");
     }
 
     #[test]
