@@ -28,7 +28,7 @@ for arg in "$@"; do
 done
 cargo build --release --quiet -p vol_app --manifest-path "$root/Cargo.toml"
 app="${CARGO_TARGET_DIR:-$root/target}/release/vol_app"
-frame=(--size 700x700 --camera-pos 1100,1100,1100 --look-at 0,0,0 --fov 60 --step 0.2 --tf-preset shapes --stats)
+frame=(--camera-pos 1100,1100,1100 --look-at 0,0,0 --fov 60 --step 0.2 --tf-preset shapes --stats)
 
 row() {
     local file="$1" label="$2" reps="$3"
@@ -49,13 +49,20 @@ print("| " + " | ".join(cells) + " |")
 echo "| file | ERT / ESS | renderer | threads | ms/frame (median) | samples/frame | samples/s | open + ESS build (ms) |"
 echo "|---|---|---|---|---|---|---|---|"
 for file in 800shapes_linear.vol 800shapes_block16.vol; do
-    row "$file" "on / on" "$repeat" --renderer serial --threads 1
-    row "$file" "off / off" 1 --renderer serial --threads 1 --ert off --ess off
+    row "$file" "on / on" "$repeat" --size 700x700 --renderer serial --threads 1
+    row "$file" "off / off" 1 --size 700x700 --renderer serial --threads 1 --ert off --ess off
     for renderer in tiles object; do
         for threads in 1 2; do
-            row "$file" "on / on" "$repeat" --renderer "$renderer" --threads "$threads"
+            row "$file" "on / on" "$repeat" --size 700x700 --renderer "$renderer" --threads "$threads"
         done
     done
+    row "$file" "on / on, unshaded" "$repeat" --size 700x700 --renderer object --threads 2 --shading off
+    # Pure sampling throughput on one core: nothing skipped, no shading,
+    # the centre 350×350 of the frame (AVX2, then the portable loop).
+    row "$file" "off / off, unshaded, 350×350" 3 --size 350x350 --renderer serial --threads 1 \
+        --ert off --ess off --shading off
+    RAYCASTER_SIMD=portable row "$file" "same, portable loop" 3 --size 350x350 --renderer serial \
+        --threads 1 --ert off --ess off --shading off
 done
 
 if ((with_2000)); then
