@@ -24,27 +24,13 @@ use glam::{UVec3, Vec3};
 
 use super::RaySegment;
 use crate::simd::{self, Isa, Kernel, LANES};
-use crate::volume::{Corners, Volume, split_coord};
-
-/// The last cell whose corners were loaded, carried from batch to batch.
-#[derive(Debug, Clone, Copy)]
-pub struct CornerCache {
-    cell: UVec3,
-    corners: Corners,
-}
-
-impl Default for CornerCache {
-    fn default() -> Self {
-        CornerCache {
-            cell: UVec3::splat(u32::MAX),
-            corners: [0.0; 8],
-        }
-    }
-}
+use crate::volume::{Corners, Grid, Volume, split_coord};
 
 /// Up to [`LANES`] consecutive samples `k..k + len` of one ray: their cells,
 /// fractions, corners and interpolated values, lane `l` holding sample
-/// `k + l`. Lanes at and past `len` hold values that mean nothing.
+/// `k + l`. Lanes at and past `len` hold values that mean nothing. Filling
+/// the next batch of the ray reuses the last valid lane's corners when the
+/// ray is still in that cell.
 #[derive(Debug, Clone, Copy)]
 #[repr(C, align(32))]
 pub struct SampleBatch {
@@ -56,23 +42,28 @@ pub struct SampleBatch {
     pub cell: [[u32; LANES]; 3],
     /// Fraction within the cell per axis and lane.
     pub frac: [[f32; LANES]; 3],
-    /// Valid lanes.
+    /// Valid lanes (0 before the first fill).
     pub len: usize,
+    /// The grid's largest coordinate and last cell per axis (clamping).
+    max_coord: [f32; 3],
+    last: [u32; 3],
 }
 
-impl Default for SampleBatch {
-    fn default() -> Self {
+impl SampleBatch {
+    /// An empty batch for sampling a volume on `grid`.
+    #[inline(always)]
+    pub fn new(grid: &Grid) -> Self {
         SampleBatch {
             value: [0.0; LANES],
             corners: [[0.0; LANES]; 8],
             cell: [[0; LANES]; 3],
             frac: [[0.0; LANES]; 3],
             len: 0,
+            max_coord: grid.max_coord().to_array(),
+            last: grid.last_cell().to_array(),
         }
     }
-}
 
-impl SampleBatch {
     /// Samples `k..k + len` of `seg` (`len <= LANES`).
     #[inline(always)]
     pub fn fill<V: Volume, I: Isa>(
@@ -82,15 +73,17 @@ impl SampleBatch {
         seg: &RaySegment,
         k: u32,
         len: usize,
-        cache: &mut CornerCache,
     ) {
         debug_assert!(len <= LANES);
+        // The previous fill's last cell, before this fill overwrites it.
+        let (prev_cell, prev_corners) = match self.len {
+            0 => (UVec3::MAX, [0.0; 8]),
+            n => (self.cell(n - 1), self.corners(n - 1)),
+        };
         self.len = len;
-        let grid = volume.grid();
-        let (max_coord, last) = (grid.max_coord(), grid.last_cell());
+        let (max_coord, last) = (self.max_coord, self.last);
         let origin = seg.origin.to_array();
         let dir = seg.dir.to_array();
-        let (max_coord, last) = (max_coord.to_array(), last.to_array());
         // Positions, cells and fractions: `seg.pos` and `Volume::locate`,
         // lane-wise.
         let mut t = [0.0f32; LANES];
@@ -110,14 +103,14 @@ impl SampleBatch {
         // cells).
         volume.prefetch(seg.pos(k + 4 * LANES as u32));
         // Corners: lane l starts a new cell when its cell differs from lane
-        // l − 1's (lane 0 compares with the cache). Each new cell is loaded
+        // l − 1's (lane 0 compares with the previous fill's last lane). Each new cell is loaded
         // into the next slot; slot 0 holds the cached cell until lane 0
         // needs another, so eight lanes never need more than eight slots.
         let mut diff = [0u32; LANES];
         for a in 0..3 {
             let c = &self.cell[a];
             let mut prev = [0u32; LANES];
-            prev[0] = cache.cell[a];
+            prev[0] = prev_cell[a];
             prev[1..].copy_from_slice(&c[..LANES - 1]);
             for l in 0..LANES {
                 diff[l] |= c[l] ^ prev[l];
@@ -126,7 +119,7 @@ impl SampleBatch {
         let starts = isa.nonzero_mask(&diff) & ((1u32 << len) - 1);
         let slot_of = SLOT_OF[(starts & 0xfe) as usize];
         let mut slots = [[0.0f32; LANES]; 8];
-        for (j, &v) in cache.corners.iter().enumerate() {
+        for (j, &v) in prev_corners.iter().enumerate() {
             slots[j][0] = v;
         }
         let mut pending = starts;
@@ -141,13 +134,6 @@ impl SampleBatch {
         }
         for j in 0..8 {
             self.corners[j] = isa.permute(&slots[j], &slot_of);
-        }
-        if len > 0 {
-            let l = len - 1;
-            *cache = CornerCache {
-                cell: self.cell(l),
-                corners: self.corners(l),
-            };
         }
         // Trilinear blend: `volume::interpolate`, lane-wise.
         let c = &self.corners;
@@ -244,12 +230,11 @@ impl<V: Volume, T, F: FnMut(T, f32) -> T> Kernel for FoldValues<'_, V, T, F> {
             mut init,
             mut f,
         } = self;
-        let mut batch = SampleBatch::default();
-        let mut cache = CornerCache::default();
+        let mut batch = SampleBatch::new(volume.grid());
         let mut b = k;
         while b < end {
             let len = ((end - b) as usize).min(LANES);
-            batch.fill(isa, volume, seg, b, len, &mut cache);
+            batch.fill(isa, volume, seg, b, len);
             for &v in &batch.value[..len] {
                 init = f(init, v);
             }
@@ -268,8 +253,8 @@ mod tests {
     use crate::simd::Portable;
     use crate::volume::{AnyVolume, Grid, VolumeVisitor};
 
-    /// Checks that batches of every length, carried across batches through
-    /// the corner cache, give exactly `Volume::sample` at `seg.pos` in every
+    /// Checks that batches of every length, reusing corners from batch to
+    /// batch, give exactly `Volume::sample` at `seg.pos` in every
     /// instruction set, along rays that cross many cells and that linger in
     /// one (fine steps), and that the cell and fraction of each lane are
     /// `Volume::locate`'s.
@@ -303,12 +288,11 @@ mod tests {
     }
 
     fn check<I: Isa, V: Volume>(isa: I, volume: &V, seg: &RaySegment, rng: &mut fastrand::Rng) {
-        let mut batch = SampleBatch::default();
-        let mut cache = CornerCache::default();
+        let mut batch = SampleBatch::new(volume.grid());
         let mut k = 0;
         while k < seg.count {
             let len = rng.usize(1..=LANES).min((seg.count - k) as usize);
-            batch.fill(isa, volume, seg, k, len, &mut cache);
+            batch.fill(isa, volume, seg, k, len);
             for l in 0..len {
                 let p = seg.pos(k + l as u32);
                 let at = volume.locate(p);

@@ -2,7 +2,7 @@
 
 use glam::{UVec3, Vec3, Vec4};
 
-use super::batch::{CornerCache, SampleBatch};
+use super::batch::SampleBatch;
 use super::{FrameContext, Integrator, Occupancy, RaySegment, Span};
 use crate::accel::RunKind;
 use crate::simd::{self, Isa, Kernel, LANES};
@@ -97,84 +97,6 @@ impl DvrState {
         })
     }
 
-    /// The marching loop: values and table positions a batch at a time,
-    /// then lookup, shading and compositing of the lanes that may be
-    /// visible, in order. Works on local copies of the state, so the loop
-    /// keeps them in registers.
-    #[inline(always)]
-    fn march_lanes<V: Volume, I: Isa>(
-        &mut self,
-        isa: I,
-        ctx: &FrameContext<'_, V>,
-        seg: &RaySegment,
-        k: u32,
-        end: u32,
-        threshold: f32,
-    ) -> u64 {
-        let volume = ctx.volume;
-        let lut = ctx.lut;
-        let shading = ctx.shading;
-        let mut color = self.color;
-        let mut alpha = self.alpha;
-        let mut taken = (end - k) as u64;
-        let mut done = false;
-        let inv_two_spacing = 0.5 / volume.grid().spacing;
-        let mut batch = SampleBatch::default();
-        let mut cache = CornerCache::default();
-        // A cell's gradient stencil, kept while consecutive visible samples
-        // stay in it.
-        let (mut wings_cell, mut wings) = (UVec3::splat(u32::MAX), None);
-        let mut b = k;
-        'march: while b < end {
-            let len = ((end - b) as usize).min(LANES);
-            batch.fill(isa, volume, seg, b, len, &mut cache);
-            let (x, visible) = lut.visible_lanes(isa, &batch.value);
-            let mut lanes = visible & ((1 << len) - 1);
-            while lanes != 0 {
-                let l = lanes.trailing_zeros() as usize;
-                lanes &= lanes - 1;
-                let e = lut.lookup_at(x[l], batch.value[l]);
-                if e.w <= 0.0 {
-                    continue;
-                }
-                let mut rgb = e.truncate();
-                if let Some(ph) = &shading {
-                    let (cell, corners) = (batch.cell(l), batch.corners(l));
-                    if wings_cell != cell {
-                        wings_cell = cell;
-                        // A stencil of 32 equal values (inside a homogeneous
-                        // region) has a zero gradient: no shading, no
-                        // arithmetic.
-                        wings = volume.wings(cell).map(|w| (w, is_flat(&corners, &w)));
-                    }
-                    let g = match &wings {
-                        Some((_, true)) => Vec3::ZERO,
-                        Some((w, false)) => {
-                            stencil_gradient(&corners, w, batch.frac(l), inv_two_spacing)
-                        }
-                        None => volume.gradient(seg.pos(b + l as u32)),
-                    };
-                    if let Some((diffuse, spec)) = ph.terms(g, seg.world_dir) {
-                        rgb = rgb * diffuse + Vec3::splat(e.w * spec);
-                    }
-                }
-                let w = 1.0 - alpha;
-                color += w * rgb;
-                alpha += w * e.w;
-                if alpha >= threshold {
-                    done = true;
-                    taken = (b - k) as u64 + l as u64 + 1;
-                    break 'march;
-                }
-            }
-            b += len as u32;
-        }
-        self.color = color;
-        self.alpha = alpha;
-        self.terminated |= done;
-        taken
-    }
-
     /// Composites `n` samples of the constant value `v` in closed form: with
     /// transmittance `T = 1 − A` and `β = 1 − α`, after `n` samples
     /// `T' = T·βⁿ` and `C' = C + c·(T − T')/α` (c premultiplied). With ERT the
@@ -224,7 +146,7 @@ fn is_flat(c: &[f32; 8], w: &[f32; 24]) -> bool {
         .fold(true, |all, &x| all & (x == v))
 }
 
-/// [`DvrState::march_lanes`] as a [`Kernel`].
+/// [`DvrState::march`]'s loop as a [`Kernel`].
 struct March<'a, 'c, V: Volume> {
     state: &'a mut DvrState,
     ctx: &'a FrameContext<'c, V>,
@@ -237,6 +159,10 @@ struct March<'a, 'c, V: Volume> {
 impl<V: Volume> Kernel for March<'_, '_, V> {
     type Output = u64;
 
+    /// The marching loop: values and table positions a batch at a time,
+    /// then lookup, shading and compositing of the lanes that may be
+    /// visible, in order. Works on local copies of the state, so the loop
+    /// keeps them in registers.
     #[inline(always)]
     fn run<I: Isa>(self, isa: I) -> u64 {
         let March {
@@ -247,6 +173,66 @@ impl<V: Volume> Kernel for March<'_, '_, V> {
             end,
             threshold,
         } = self;
-        state.march_lanes(isa, ctx, seg, k, end, threshold)
+        let volume = ctx.volume;
+        let lut = ctx.lut;
+        let shading = ctx.shading;
+        let mut color = state.color;
+        let mut alpha = state.alpha;
+        let mut taken = (end - k) as u64;
+        let mut done = false;
+        let inv_two_spacing = 0.5 / volume.grid().spacing;
+        let mut batch = SampleBatch::new(volume.grid());
+        // A cell's gradient stencil, kept while consecutive visible samples
+        // stay in it.
+        let (mut wings_cell, mut wings) = (UVec3::splat(u32::MAX), None);
+        let mut b = k;
+        'march: while b < end {
+            let len = ((end - b) as usize).min(LANES);
+            batch.fill(isa, volume, seg, b, len);
+            let (x, visible) = lut.visible_lanes(isa, &batch.value);
+            let mut lanes = visible & ((1 << len) - 1);
+            while lanes != 0 {
+                let l = lanes.trailing_zeros() as usize;
+                lanes &= lanes - 1;
+                let e = lut.lookup_at(x[l], batch.value[l]);
+                if e.w <= 0.0 {
+                    continue;
+                }
+                let mut rgb = e.truncate();
+                if let Some(ph) = &shading {
+                    let (cell, corners) = (batch.cell(l), batch.corners(l));
+                    if wings_cell != cell {
+                        wings_cell = cell;
+                        // A stencil of 32 equal values (inside a homogeneous
+                        // region) has a zero gradient: no shading, no
+                        // arithmetic.
+                        wings = volume.wings(cell).map(|w| (w, is_flat(&corners, &w)));
+                    }
+                    let g = match &wings {
+                        Some((_, true)) => Vec3::ZERO,
+                        Some((w, false)) => {
+                            stencil_gradient(&corners, w, batch.frac(l), inv_two_spacing)
+                        }
+                        None => volume.gradient(seg.pos(b + l as u32)),
+                    };
+                    if let Some((diffuse, spec)) = ph.terms(g, seg.world_dir) {
+                        rgb = rgb * diffuse + Vec3::splat(e.w * spec);
+                    }
+                }
+                let w = 1.0 - alpha;
+                color += w * rgb;
+                alpha += w * e.w;
+                if alpha >= threshold {
+                    done = true;
+                    taken = (b - k) as u64 + l as u64 + 1;
+                    break 'march;
+                }
+            }
+            b += len as u32;
+        }
+        state.color = color;
+        state.alpha = alpha;
+        state.terminated |= done;
+        taken
     }
 }

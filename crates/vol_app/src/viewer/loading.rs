@@ -105,11 +105,15 @@ impl Histogram {
         let dims = volume.grid().dims;
         let voxels = dims.as_dvec3().element_product();
         let mut counts = vec![0u64; bins];
-        let scale = bins as f32 / (hi - lo);
+        let bins = Bins {
+            lo,
+            scale: bins as f32 / (hi - lo),
+            counts: &mut counts,
+        };
         if volume.storage_kind() == StorageKind::Mapped && voxels > HISTOGRAM_SAMPLES as f64 {
-            count_in_blocks(volume, lo, scale, &mut counts, &mut progress);
+            count_in_blocks(volume, bins, &mut progress);
         } else {
-            count_on_lattice(volume, lo, scale, &mut counts, &mut progress);
+            count_on_lattice(volume, bins, &mut progress);
         }
         Histogram {
             range,
@@ -120,37 +124,43 @@ impl Histogram {
     }
 }
 
-/// Counts a regular lattice of at most [`HISTOGRAM_SAMPLES`] voxels (every
-/// voxel of a small volume) into `counts`.
-fn count_on_lattice(
-    volume: &AnyVolume,
+/// Histogram bins being filled: value `v` goes to bin `(v − lo)·scale`,
+/// clamped to the last.
+struct Bins<'a> {
     lo: f32,
     scale: f32,
-    counts: &mut [u64],
-    progress: &mut dyn FnMut(f32),
-) {
+    counts: &'a mut [u64],
+}
+
+impl Bins<'_> {
+    fn add(&mut self, v: f32) {
+        let b = ((v - self.lo) * self.scale) as usize;
+        let last = self.counts.len() - 1;
+        self.counts[b.min(last)] += 1;
+    }
+}
+
+/// Counts a regular lattice of at most [`HISTOGRAM_SAMPLES`] voxels (every
+/// voxel of a small volume) into `counts`.
+fn count_on_lattice(volume: &AnyVolume, bins: Bins<'_>, progress: &mut dyn FnMut(f32)) {
     let voxels = volume.grid().dims.as_dvec3().element_product();
     let stride = ((voxels / HISTOGRAM_SAMPLES as f64).cbrt().ceil() as u32).max(1);
     struct Count<'a> {
         stride: u32,
-        lo: f32,
-        scale: f32,
-        counts: &'a mut [u64],
+        bins: Bins<'a>,
         progress: &'a mut dyn FnMut(f32),
     }
     impl raycaster::volume::VolumeVisitor for Count<'_> {
         type Output = ();
-        fn visit<V: raycaster::volume::Volume>(self, v: &V) {
+        fn visit<V: raycaster::volume::Volume>(mut self, v: &V) {
             use raycaster::sample::Sample;
             let dims = v.grid().dims;
-            let (stride, bins) = (self.stride, self.counts.len());
+            let stride = self.stride;
             let xs = dims.x.div_ceil(stride);
             for (i, x) in (0..dims.x).step_by(stride as usize).enumerate() {
                 for y in (0..dims.y).step_by(stride as usize) {
                     for z in (0..dims.z).step_by(stride as usize) {
-                        let s = v.voxel(UVec3::new(x, y, z)).to_f32();
-                        let b = ((s - self.lo) * self.scale) as usize;
-                        self.counts[b.min(bins - 1)] += 1;
+                        self.bins.add(v.voxel(UVec3::new(x, y, z)).to_f32());
                     }
                 }
                 (self.progress)((i + 1) as f32 / xs as f32);
@@ -159,9 +169,7 @@ fn count_on_lattice(
     }
     volume.visit(Count {
         stride,
-        lo,
-        scale,
-        counts,
+        bins,
         progress,
     });
 }
@@ -176,23 +184,15 @@ const HISTOGRAM_BLOCK: usize = 4096;
 /// grid would touch nearly every page of a huge file (one per brick), which
 /// is the whole file in memory. Padding past the grid's edge in the last
 /// bricks is skipped; the voxels bricks share are counted once per copy.
-fn count_in_blocks(
-    volume: &AnyVolume,
-    lo: f32,
-    scale: f32,
-    counts: &mut [u64],
-    progress: &mut dyn FnMut(f32),
-) {
+fn count_in_blocks(volume: &AnyVolume, bins: Bins<'_>, progress: &mut dyn FnMut(f32)) {
     struct Blocks<'a> {
         volume: &'a AnyVolume,
-        lo: f32,
-        scale: f32,
-        counts: &'a mut [u64],
+        bins: Bins<'a>,
         progress: &'a mut dyn FnMut(f32),
     }
     impl raycaster::sample::SampleTypeVisitor for Blocks<'_> {
         type Output = ();
-        fn visit<S: raycaster::sample::Sample>(self) {
+        fn visit<S: raycaster::sample::Sample>(mut self) {
             let Some(samples) = self.volume.samples::<S>() else {
                 return;
             };
@@ -204,7 +204,6 @@ fn count_in_blocks(
             let len = samples.len();
             let block = HISTOGRAM_BLOCK.min(len);
             let n = (HISTOGRAM_SAMPLES as usize / block).clamp(1, len / block);
-            let bins = self.counts.len();
             for i in 0..n {
                 // Evenly spaced, aligned to blocks (to bricks of 16).
                 let start = if n > 1 {
@@ -218,8 +217,7 @@ fn count_in_blocks(
                     {
                         continue;
                     }
-                    let b = ((s.to_f32() - self.lo) * self.scale) as usize;
-                    self.counts[b.min(bins - 1)] += 1;
+                    self.bins.add(s.to_f32());
                 }
                 (self.progress)((i + 1) as f32 / n as f32);
             }
@@ -227,9 +225,7 @@ fn count_in_blocks(
     }
     volume.sample_type().visit(Blocks {
         volume,
-        lo,
-        scale,
-        counts,
+        bins,
         progress,
     });
 }
