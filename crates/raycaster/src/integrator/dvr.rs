@@ -6,7 +6,7 @@ use super::batch::SampleBatch;
 use super::{FrameContext, Integrator, Occupancy, RaySegment, Span};
 use crate::accel::RunKind;
 use crate::simd::{self, Isa, Kernel, LANES};
-use crate::volume::{Volume, stencil_gradient};
+use crate::volume::{CornerGradients, Volume, corner_gradients, interpolate_gradient};
 
 /// Accumulated colour (premultiplied) and opacity of a ray.
 #[derive(Debug, Clone, Copy, Default)]
@@ -137,15 +137,6 @@ impl DvrState {
     }
 }
 
-/// True when every corner and wing value is the same.
-#[inline(always)]
-fn is_flat(c: &[f32; 8], w: &[f32; 24]) -> bool {
-    let v = c[0];
-    c.iter()
-        .chain(w.iter())
-        .fold(true, |all, &x| all & (x == v))
-}
-
 /// [`DvrState::march`]'s loop as a [`Kernel`].
 struct March<'a, 'c, V: Volume> {
     state: &'a mut DvrState,
@@ -182,9 +173,9 @@ impl<V: Volume> Kernel for March<'_, '_, V> {
         let mut done = false;
         let inv_two_spacing = 0.5 / volume.grid().spacing;
         let mut batch = SampleBatch::new(volume.grid());
-        // A cell's gradient stencil, kept while consecutive visible samples
-        // stay in it.
-        let (mut wings_cell, mut wings) = (UVec3::splat(u32::MAX), None);
+        // A cell's corner gradients, kept while consecutive visible samples
+        // stay in it, and whether they are all zero.
+        let (mut grads_cell, mut grads) = (UVec3::splat(u32::MAX), None::<(CornerGradients, bool)>);
         let mut b = k;
         'march: while b < end {
             let len = ((end - b) as usize).min(LANES);
@@ -200,22 +191,27 @@ impl<V: Volume> Kernel for March<'_, '_, V> {
                 }
                 let mut rgb = e.truncate();
                 if let Some(ph) = &shading {
-                    let (cell, corners) = (batch.cell(l), batch.corners(l));
-                    if wings_cell != cell {
-                        wings_cell = cell;
-                        // A stencil of 32 equal values (inside a homogeneous
-                        // region) has a zero gradient: no shading, no
-                        // arithmetic.
-                        wings = volume.wings(cell).map(|w| (w, is_flat(&corners, &w)));
+                    let cell = batch.cell(l);
+                    if grads_cell != cell {
+                        grads_cell = cell;
+                        // Zero corner differences (inside a homogeneous
+                        // region) give a zero gradient, which leaves the
+                        // colour unshaded: no arithmetic per sample.
+                        grads = volume.wings(cell).map(|w| {
+                            let g = corner_gradients(&batch.corners(l), &w);
+                            (g, g.iter().all(|d| *d == Vec4::ZERO))
+                        });
                     }
-                    let g = match &wings {
-                        Some((_, true)) => Vec3::ZERO,
-                        Some((w, false)) => {
-                            stencil_gradient(&corners, w, batch.frac(l), inv_two_spacing)
+                    let g = match &grads {
+                        Some((_, true)) => None,
+                        Some((g, false)) => {
+                            Some(interpolate_gradient(g, batch.frac(l), inv_two_spacing))
                         }
-                        None => volume.gradient(seg.pos(b + l as u32)),
+                        None => Some(volume.gradient(seg.pos(b + l as u32))),
                     };
-                    if let Some((diffuse, spec)) = ph.terms(g, seg.world_dir) {
+                    if let Some(g) = g
+                        && let Some((diffuse, spec)) = ph.terms(g, seg.world_dir)
+                    {
                         rgb = rgb * diffuse + Vec3::splat(e.w * spec);
                     }
                 }

@@ -24,7 +24,7 @@ pub use grid::Grid;
 pub use grid_volume::GridVolume;
 pub(crate) use ranges::{cell_value_ranges_bricked, fold_range_f32};
 
-use glam::{UVec3, Vec3};
+use glam::{UVec3, Vec3, Vec4};
 
 use crate::sample::Sample;
 
@@ -123,38 +123,63 @@ pub fn interpolate(c: &Corners, f: Vec3) -> f32 {
     lerp(lerp(c00, c01, f.y), lerp(c10, c11, f.y), f.x)
 }
 
+/// The central differences at a cell's 8 corners, `(v[i+1] − v[i−1])` per
+/// axis (value units, not yet divided by `2·spacing`) in `xyz` of a `Vec4`,
+/// in [`Corners`] order.
+pub type CornerGradients = [Vec4; 8];
+
+/// The central differences at the corners of a cell, from its corners and
+/// wings: the part of the gradient that depends only on the cell, so a ray
+/// computes it once for all its samples in the cell.
+#[inline(always)]
+pub fn corner_gradients(c: &Corners, w: &Wings) -> CornerGradients {
+    // Corner n = 4i + 2j + k. Along x: at i = 0 the difference is
+    // v(x+1) − v(x−1) = c[4 + 2j + k] − w[2j + k], at i = 1 it is
+    // v(x+2) − v(x) = w[4 + 2j + k] − c[2j + k]; y and z likewise with
+    // their wing groups (see [`Wings`]).
+    let g = |n: usize| {
+        let (i, j, k) = (n >> 2, (n >> 1) & 1, n & 1);
+        let gx = if i == 0 {
+            c[4 + 2 * j + k] - w[2 * j + k]
+        } else {
+            w[4 + 2 * j + k] - c[2 * j + k]
+        };
+        let gy = if j == 0 {
+            c[4 * i + 2 + k] - w[8 + 2 * i + k]
+        } else {
+            w[12 + 2 * i + k] - c[4 * i + k]
+        };
+        let gz = if k == 0 {
+            c[4 * i + 2 * j + 1] - w[16 + 2 * i + j]
+        } else {
+            w[20 + 2 * i + j] - c[4 * i + 2 * j]
+        };
+        Vec4::new(gx, gy, gz, 0.0)
+    };
+    [g(0), g(1), g(2), g(3), g(4), g(5), g(6), g(7)]
+}
+
+/// The gradient (value units per world unit) at fractions `f` inside a
+/// cell: the trilinear interpolation of its corner central differences
+/// ([`corner_gradients`]) scaled by `1 / (2·spacing)`, the three axes at
+/// once in the lanes of a `Vec4`.
+#[inline(always)]
+pub fn interpolate_gradient(g: &CornerGradients, f: Vec3, inv_two_spacing: Vec3) -> Vec3 {
+    let lerp = |a: Vec4, b: Vec4, t: Vec4| a + (b - a) * t;
+    let (fx, fy, fz) = (Vec4::splat(f.x), Vec4::splat(f.y), Vec4::splat(f.z));
+    let g00 = lerp(g[0], g[1], fz);
+    let g01 = lerp(g[2], g[3], fz);
+    let g10 = lerp(g[4], g[5], fz);
+    let g11 = lerp(g[6], g[7], fz);
+    lerp(lerp(g00, g01, fy), lerp(g10, g11, fy), fx).truncate() * inv_two_spacing
+}
+
 /// The central-difference gradient (one voxel each way, value units per
-/// world unit) at fractions `f` inside a cell, from its corners and wings.
-///
-/// `f(p + eₓ) − f(p − eₓ)` is the interpolation, with p's fractions, of the
-/// cell one voxel further minus the cell one voxel back. Interpolating first
-/// over y and z gives four slab values `B(−1..=2)` along x, and
-/// `gx = lerp(B1, B2, fx) − lerp(B−1, B0, fx)`; likewise for y and z.
+/// world unit) at fractions `f` inside a cell, from its corners and wings:
+/// the trilinear interpolation of the corners' central differences.
 #[inline(always)]
 pub fn stencil_gradient(c: &Corners, w: &Wings, f: Vec3, inv_two_spacing: Vec3) -> Vec3 {
-    let lerp = |a: f32, b: f32, t: f32| a + (b - a) * t;
-    let bi = |a: f32, b: f32, c: f32, d: f32, s: f32, t: f32| lerp(lerp(a, b, t), lerp(c, d, t), s);
-    let diff = |m: f32, s0: f32, s1: f32, p: f32, t: f32| lerp(s1, p, t) - lerp(m, s0, t);
-    // Slabs across x: bilinear in (y, z).
-    let x0 = bi(c[0], c[1], c[2], c[3], f.y, f.z);
-    let x1 = bi(c[4], c[5], c[6], c[7], f.y, f.z);
-    let xm = bi(w[0], w[1], w[2], w[3], f.y, f.z);
-    let xp = bi(w[4], w[5], w[6], w[7], f.y, f.z);
-    // Slabs across y: bilinear in (x, z).
-    let y0 = bi(c[0], c[1], c[4], c[5], f.x, f.z);
-    let y1 = bi(c[2], c[3], c[6], c[7], f.x, f.z);
-    let ym = bi(w[8], w[9], w[10], w[11], f.x, f.z);
-    let yp = bi(w[12], w[13], w[14], w[15], f.x, f.z);
-    // Slabs across z: bilinear in (x, y).
-    let z0 = bi(c[0], c[2], c[4], c[6], f.x, f.y);
-    let z1 = bi(c[1], c[3], c[5], c[7], f.x, f.y);
-    let zm = bi(w[16], w[17], w[18], w[19], f.x, f.y);
-    let zp = bi(w[20], w[21], w[22], w[23], f.x, f.y);
-    Vec3::new(
-        diff(xm, x0, x1, xp, f.x),
-        diff(ym, y0, y1, yp, f.y),
-        diff(zm, z0, z1, zp, f.z),
-    ) * inv_two_spacing
+    interpolate_gradient(&corner_gradients(c, w), f, inv_two_spacing)
 }
 
 /// Loads a cell's corners from `base` with the strides to the x, y and z

@@ -1,7 +1,7 @@
 //! Bricks: the regions of voxel space the object renderer integrates one at
 //! a time, and which samples of a ray lie in each.
 
-use glam::{UVec3, Vec3};
+use glam::{UVec3, Vec3, Vec3A};
 
 use crate::accel::{MacrocellGrid, SkipGrid};
 use crate::geometry::Aabb;
@@ -158,30 +158,24 @@ impl Region {
 #[inline]
 pub(super) fn sample_range(seg: &RaySegment, r: &Region) -> (u32, u32) {
     let n = seg.count;
-    let mut enter = f32::NEG_INFINITY;
-    let mut exit = f32::INFINITY;
-    let mut inv_sum = 0.0f32;
-    for a in 0..3 {
-        let d = seg.dir[a];
-        let o = seg.origin[a];
-        if d == 0.0 {
-            // The coordinate is `o` at every sample.
-            if !(r.lo[a] <= o && o < r.hi[a]) {
-                return (0, 0);
-            }
-            continue;
+    let inv = Vec3A::from(seg.inv_dir);
+    // The slab test on all three axes at once, for rays with no direction
+    // component that is zero or nearly so (those take the scalar path).
+    let (enter, exit, inv_sum) = if inv.abs().cmple(Vec3A::splat(1e12)).all() {
+        let o = Vec3A::from(seg.origin);
+        let t0 = (Vec3A::from(r.lo) - o) * inv;
+        let t1 = (Vec3A::from(r.hi) - o) * inv;
+        (
+            t0.min(t1).max_element(),
+            t0.max(t1).min_element(),
+            inv.abs().element_sum(),
+        )
+    } else {
+        match slab_scalar(seg, r) {
+            Some(slab) => slab,
+            None => return exact_range(seg, r),
         }
-        let inv = seg.inv_dir[a];
-        if !inv.is_finite() || inv.abs() > 1e12 {
-            return exact_range(seg, r);
-        }
-        let t0 = (r.lo[a] - o) * inv;
-        let t1 = (r.hi[a] - o) * inv;
-        let (a_in, a_out) = if d > 0.0 { (t0, t1) } else { (t1, t0) };
-        enter = enter.max(a_in);
-        exit = exit.min(a_out);
-        inv_sum += inv.abs();
-    }
+    };
     let t_end = seg.t(n);
     // A bound on the rounding error of a sample position (voxel units),
     // converted to ray parameter: well above f32's 2⁻²⁴ relative error.
@@ -211,6 +205,38 @@ pub(super) fn sample_range(seg: &RaySegment, r: &Region) -> (u32, u32) {
         }
     }
     exact_range(seg, r)
+}
+
+/// [`sample_range`]'s slab test one axis at a time, for rays with a zero or
+/// nearly zero direction component: the ray's entry and exit parameters and
+/// the sum of `|1/d|`, `(±∞, ∓∞, 0)` when the ray misses the region, `None`
+/// when only the exact search will do.
+fn slab_scalar(seg: &RaySegment, r: &Region) -> Option<(f32, f32, f32)> {
+    let mut enter = f32::NEG_INFINITY;
+    let mut exit = f32::INFINITY;
+    let mut inv_sum = 0.0f32;
+    for a in 0..3 {
+        let d = seg.dir[a];
+        let o = seg.origin[a];
+        if d == 0.0 {
+            // The coordinate is `o` at every sample.
+            if !(r.lo[a] <= o && o < r.hi[a]) {
+                return Some((f32::INFINITY, f32::NEG_INFINITY, 0.0));
+            }
+            continue;
+        }
+        let inv = seg.inv_dir[a];
+        if !inv.is_finite() || inv.abs() > 1e12 {
+            return None;
+        }
+        let t0 = (r.lo[a] - o) * inv;
+        let t1 = (r.hi[a] - o) * inv;
+        let (a_in, a_out) = if d > 0.0 { (t0, t1) } else { (t1, t0) };
+        enter = enter.max(a_in);
+        exit = exit.min(a_out);
+        inv_sum += inv.abs();
+    }
+    Some((enter, exit, inv_sum))
 }
 
 /// [`sample_range`] by a search along each axis on the computed positions.
