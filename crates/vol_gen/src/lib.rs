@@ -1,6 +1,7 @@
 //! `vol_gen`: a fast, parallel generator of test volumes in the `.vol` format
 //! (26-byte header, linear or bricked samples), with the command line the
-//! README describes.
+//! README describes; and of signed distance fields of triangle meshes
+//! (`--generator mesh`, f32 NRRD or NIfTI, see [`mesh`]).
 //!
 //! The design: a *sample generator*
 //! gives any voxel its value ([`generators`]), an *order* decides the sequence

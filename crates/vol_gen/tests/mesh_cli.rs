@@ -172,6 +172,15 @@ fn the_bunny_is_closed_and_negative_inside() {
 }
 
 #[test]
+fn help_documents_the_mesh_generator() {
+    let out = run_ok(&["--help"]);
+    let help = String::from_utf8_lossy(&out.stdout);
+    for word in ["mesh", "--mesh", "--margin", ".nrrd", ".ply", "negative"] {
+        assert!(help.contains(word), "{word}");
+    }
+}
+
+#[test]
 fn bad_input_is_one_line_and_no_file() {
     let dir = TempDir::new("mesh-bad");
     let good = dir.path("cube.obj");

@@ -101,15 +101,20 @@ impl Bvh {
                 triangle: h,
             };
         }
-        // Depth is about log2(n / LEAF_SIZE); 64 covers any mesh that fits
-        // in memory, and the Vec grows if ever needed.
-        let mut stack: Vec<u32> = Vec::with_capacity(64);
-        stack.push(0);
-        while let Some(i) = stack.pop() {
-            let node = &self.nodes[i as usize];
-            if box_distance_squared(p, node.lo, node.hi) >= best.distance_squared {
+        // Entries are (node, squared distance to its box), so a node's box
+        // is measured once, when its parent is opened. The median split
+        // halves the triangles at each level, so the depth is below 32 and
+        // the stack, holding at most one entry per level plus one, fits in
+        // a fixed array (no allocation per query).
+        let mut stack = [(0u32, 0.0f64); 64];
+        let mut len = 1;
+        while len > 0 {
+            len -= 1;
+            let (i, box_d) = stack[len];
+            if box_d >= best.distance_squared {
                 continue;
             }
+            let node = &self.nodes[i as usize];
             if node.count > 0 {
                 let start = node.start as usize;
                 for (k, t) in self.triangles[start..start + node.count as usize]
@@ -135,11 +140,20 @@ impl Bvh {
                 let n = &self.nodes[b as usize];
                 box_distance_squared(p, n.lo, n.hi)
             };
-            // Pushed last is visited first: the nearer child.
-            if da <= db {
-                stack.extend([b, a]);
+            // Pushed last is visited first: the nearer child. Children
+            // already beyond the best distance are not pushed.
+            let (near, far) = if da <= db {
+                ((a, da), (b, db))
             } else {
-                stack.extend([a, b]);
+                ((b, db), (a, da))
+            };
+            if far.1 < best.distance_squared {
+                stack[len] = far;
+                len += 1;
+            }
+            if near.1 < best.distance_squared {
+                stack[len] = near;
+                len += 1;
             }
         }
         best
