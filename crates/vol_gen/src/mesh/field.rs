@@ -68,7 +68,7 @@ impl Placement {
             spacing = spacing.max(extent[axis] / room);
         }
         if !(spacing.is_finite() && spacing > 0.0) {
-            return Err("the mesh has no extent".into());
+            return Err(format!("the mesh's extent {extent} is zero or too large"));
         }
         let centre = (lo + hi) / 2.0;
         let origin = centre - (dims.as_dvec3() - DVec3::ONE) / 2.0 * spacing;
@@ -81,24 +81,26 @@ impl Placement {
     }
 }
 
-/// The signed distance at every voxel of a `dims` grid, in mesh units, x
-/// fastest (`index = (z·Y + y)·X + x`). `progress` is told of each finished
-/// z-slice (its voxel count); `stop` is asked before each slice and makes the
-/// result `None` when it says so.
+/// Writes the signed distance at every voxel of a `dims` grid, in mesh
+/// units, into `out` (x fastest: `index = (z·Y + y)·X + x`; its length must
+/// be the voxel count). `progress` is told of each finished z-slice (its
+/// voxel count); `stop` is asked before each slice, and the return value is
+/// false when it said stop (`out` is then incomplete).
 pub fn signed_distances(
     mesh: &Mesh,
     dims: UVec3,
     placement: &Placement,
+    out: &mut [f32],
     progress: &(dyn Fn(u64) + Sync),
     stop: &(dyn Fn() -> bool + Sync),
-) -> Option<Vec<f32>> {
+) -> bool {
     // Everything below works in grid coordinates: rows at integer positions.
     let grid_mesh = mesh.map_vertices(|p| placement.to_grid(p));
     let triangles = grid_mesh.triangle_corners();
     let crossings = Crossings::new(&triangles, dims);
     let bvh = Bvh::new(triangles);
     let slice = dims.x as usize * dims.y as usize;
-    let mut out = vec![0f32; slice * dims.z as usize];
+    assert_eq!(out.len(), slice * dims.z as usize, "one value per voxel");
     let spacing = placement.spacing;
     out.par_chunks_mut(slice)
         .enumerate()
@@ -131,7 +133,7 @@ pub fn signed_distances(
             }
             progress(slice as u64);
         });
-    (!stop()).then_some(out)
+    !stop()
 }
 
 /// The file formats that hold f32 samples with a spacing.
@@ -182,16 +184,31 @@ pub fn run(config: &Config) -> Result<Summary> {
             o.z
         );
     }
+    // An allocation failure would abort the process; say it in one line.
+    let mut values: Vec<f32> = Vec::new();
+    values.try_reserve_exact(voxels as usize).map_err(|_| {
+        Error::Failed(format!(
+            "--dims {},{},{}: not enough memory for the field ({})",
+            dims.x,
+            dims.y,
+            dims.z,
+            raycaster::units::bytes(bytes)
+        ))
+    })?;
+    values.resize(voxels as usize, 0.0);
     let progress = Progress::voxels(voxels, !config.quiet);
-    let values = signed_distances(
+    let complete = signed_distances(
         &mesh,
         dims,
         &placement,
+        &mut values,
         &|n| progress.advance(n),
         &signal::interrupted,
     );
     progress.finish();
-    let values = values.ok_or(Error::Interrupted)?;
+    if !complete {
+        return Err(Error::Interrupted);
+    }
     let grid = Grid::new(dims, Vec3::splat(placement.spacing as f32));
     let volume = AnyVolume::linear(grid, Storage::from_vec(values), AxisOrder::XFast)?;
     save(&config.output, &volume, &SaveOptions::default())?;
@@ -221,7 +238,15 @@ mod tests {
     fn sdf(mesh: &Mesh, dims: UVec3, margin: u32) -> (Vec<f32>, Placement) {
         let (lo, hi) = mesh.bounds();
         let placement = Placement::fit(lo, hi, dims, margin).unwrap();
-        let values = signed_distances(mesh, dims, &placement, &|_| {}, &|| false).unwrap();
+        let mut values = vec![0.0; (dims.x * dims.y * dims.z) as usize];
+        assert!(signed_distances(
+            mesh,
+            dims,
+            &placement,
+            &mut values,
+            &|_| {},
+            &|| false
+        ));
         (values, placement)
     }
 

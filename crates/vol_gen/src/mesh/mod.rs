@@ -395,6 +395,103 @@ mod tests {
     }
 
     #[test]
+    fn every_reader_gives_the_same_triangles() {
+        // A tetrahedron written in each format.
+        let v = [
+            [0.0, 0.0, 0.0],
+            [1.0, 0.0, 0.0],
+            [0.0, 1.0, 0.0],
+            [0.0, 0.0, 1.5],
+        ];
+        let f = [[0u32, 2, 1], [0, 1, 3], [0, 3, 2], [1, 2, 3]];
+        let want: Vec<[DVec3; 3]> = f
+            .iter()
+            .map(|t| t.map(|i| DVec3::from_array(v[i as usize])))
+            .collect();
+        let mut obj_text = String::new();
+        for p in v {
+            obj_text += &format!("v {} {} {}\n", p[0], p[1], p[2]);
+        }
+        for t in f {
+            obj_text += &format!("f {} {}/1 {}//1\n", t[0] + 1, t[1] + 1, t[2] + 1);
+        }
+        obj_text = format!("vt 0 0\nvn 0 0 1\n{obj_text}");
+        let soup: Vec<[[f32; 3]; 3]> = f
+            .iter()
+            .map(|t| t.map(|i| v[i as usize].map(|c| c as f32)))
+            .collect();
+        let mut stl_text = String::from("solid tetra\n");
+        for t in &soup {
+            stl_text += "facet normal 0 0 0\nouter loop\n";
+            for c in t {
+                stl_text += &format!("vertex {} {} {}\n", c[0], c[1], c[2]);
+            }
+            stl_text += "endloop\nendfacet\n";
+        }
+        stl_text += "endsolid tetra\n";
+        let meshes = [
+            obj::parse(&mut obj_text.as_bytes()).unwrap(),
+            stl::parse(&stl::tests::binary_stl(&soup)).unwrap(),
+            stl::parse(stl_text.as_bytes()).unwrap(),
+            ply::parse(&ply::tests::binary_ply(&v, &f, false)).unwrap(),
+            ply::parse(&ply::tests::binary_ply(&v, &f, true)).unwrap(),
+        ];
+        for (k, m) in meshes.iter().enumerate() {
+            assert_eq!(m.triangle_corners(), want, "reader {k}");
+        }
+    }
+
+    #[test]
+    fn damaged_files_never_panic() {
+        let cube = testing::cube(DVec3::ZERO, DVec3::ONE);
+        let v: Vec<[f64; 3]> = cube.vertices().iter().map(|p| p.to_array()).collect();
+        let soup: Vec<[[f32; 3]; 3]> = cube
+            .triangle_corners()
+            .iter()
+            .map(|t| t.map(|p| p.as_vec3().to_array()))
+            .collect();
+        let mut obj_text = String::new();
+        for p in &v {
+            obj_text += &format!("v {} {} {}\n", p[0], p[1], p[2]);
+        }
+        for t in cube.triangles() {
+            obj_text += &format!("f {} {} {}\n", t[0] + 1, t[1] + 1, t[2] + 1);
+        }
+        type Parser = fn(&[u8]) -> Result<Mesh, Problem>;
+        let files: [(Vec<u8>, Parser); 4] = [
+            (stl::tests::binary_stl(&soup), stl::parse),
+            (
+                ply::tests::binary_ply(&v, cube.triangles(), false),
+                ply::parse,
+            ),
+            (
+                ply::tests::binary_ply(&v, cube.triangles(), true),
+                ply::parse,
+            ),
+            (obj_text.into_bytes(), |b: &[u8]| obj::parse(&mut &b[..])),
+        ];
+        let mut rng = fastrand::Rng::with_seed(12);
+        for (good, parse) in files {
+            assert!(parse(&good).is_ok());
+            for cut in 0..good.len() {
+                let _ = parse(&good[..cut]);
+            }
+            for _ in 0..3000 {
+                let mut bad = good.clone();
+                for _ in 0..rng.usize(1..4) {
+                    let i = rng.usize(..bad.len());
+                    bad[i] = if rng.bool() {
+                        rng.u8(..)
+                    } else {
+                        b"0123456789 -\n"[rng.usize(..13)]
+                    };
+                }
+                let _ = parse(&bad);
+            }
+        }
+    }
+
+    #[test]
     fn unknown_extension_and_missing_file() {
         let e = Mesh::load(Path::new("/nonexistent/bunny.xyz")).unwrap_err();
         assert!(e.to_string().contains("bunny.xyz"), "{e}");

@@ -313,6 +313,11 @@ fn read_elements(
     let mut vertices = Vec::new();
     let mut faces: Vec<Vec<i64>> = Vec::new();
     for element in elements {
+        if element.properties.is_empty() {
+            // Nothing to read however large the count (and looping over a
+            // count of 10¹² would hang).
+            continue;
+        }
         let is_vertex = element.name == "vertex";
         let is_face = element.name == "face";
         if is_vertex {
