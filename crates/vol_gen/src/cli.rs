@@ -80,7 +80,8 @@ pub enum LayoutArg {
 #[command(
     name = "vol_gen",
     version,
-    about = "Generates test volumes in the .vol format (26-byte header + u8 samples, linear or bricked).",
+    about = "Generates test volumes in the .vol format (26-byte header + u8 samples, linear or bricked), \
+             and signed distance fields of triangle meshes (f32 NRRD or NIfTI).",
     after_help = AFTER_HELP
 )]
 pub struct Cli {
