@@ -347,6 +347,67 @@ mod tests {
     }
 
     #[test]
+    fn the_bunny_is_negative_exactly_inside() {
+        // The committed scan: 3674 triangles of uneven size, not symmetric.
+        let path = Path::new(env!("CARGO_MANIFEST_DIR")).join("../../tests/data/bunny.ply");
+        let mesh = Mesh::load(&path).unwrap();
+        let dims = UVec3::new(37, 36, 29);
+        let (values, placement) = sdf(&mesh, dims, 2);
+        let pts = points(dims, &placement);
+        let mut rng = fastrand::Rng::with_seed(4);
+        let mut inside = 0;
+        for _ in 0..600 {
+            let i = rng.usize(..values.len());
+            let w = winding_number(&mesh, pts[i]);
+            assert_eq!(values[i] < 0.0, w > 0.5, "{} w {w} d {}", pts[i], values[i]);
+            inside += usize::from(w > 0.5);
+        }
+        assert!(inside > 50, "{inside}");
+    }
+
+    #[test]
+    fn the_bunny_without_its_base_keeps_its_inside() {
+        // Cut away every triangle below y = 0.6 (the scanned bunny's base,
+        // about 3 voxels high here): a hole across the whole bottom, as in
+        // the original Stanford scan. Rays along y through the hole tie;
+        // those along x and z still see a closed outline and decide.
+        let path = Path::new(env!("CARGO_MANIFEST_DIR")).join("../../tests/data/bunny.ply");
+        let closed = Mesh::load(&path).unwrap();
+        let cut_y = 0.6;
+        let kept: Vec<[i64; 3]> = closed
+            .triangles()
+            .iter()
+            .filter(|t| t.iter().any(|&i| closed.vertices()[i as usize].y > cut_y))
+            .map(|t| t.map(i64::from))
+            .collect();
+        assert!(kept.len() < closed.triangles().len());
+        let open = Mesh::from_polygons(closed.vertices().to_vec(), kept).unwrap();
+        let dims = UVec3::new(37, 36, 29);
+        let (lo, hi) = closed.bounds();
+        let placement = Placement::fit(lo, hi, dims, 2).unwrap();
+        let mut values = vec![0.0; (dims.x * dims.y * dims.z) as usize];
+        assert!(signed_distances(
+            &open,
+            dims,
+            &placement,
+            &mut values,
+            &|_| {},
+            &|| false
+        ));
+        let pts = points(dims, &placement);
+        let mut checked = 0;
+        for (v, p) in values.iter().zip(&pts) {
+            if p.y < cut_y + 2.0 * placement.spacing {
+                continue;
+            }
+            let w = winding_number(&closed, *p);
+            assert_eq!(*v < 0.0, w > 0.5, "{p} w {w} d {v}");
+            checked += 1;
+        }
+        assert!(checked > 30_000, "{checked}");
+    }
+
+    #[test]
     fn a_hole_does_not_flip_the_sign_away_from_it() {
         let (lo, hi) = (DVec3::new(-1.0, -1.0, -1.0), DVec3::new(1.0, 1.0, 1.0));
         let closed = cube(lo, hi);
