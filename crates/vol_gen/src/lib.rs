@@ -1,6 +1,7 @@
 //! `vol_gen`: a fast, parallel generator of test volumes in the `.vol` format
 //! (26-byte header, linear or bricked samples), with the command line the
-//! README describes.
+//! README describes; and of signed distance fields of triangle meshes
+//! (`--generator mesh`, f32 NRRD or NIfTI, see [`mesh`]).
 //!
 //! The design: a *sample generator*
 //! gives any voxel its value ([`generators`]), an *order* decides the sequence
@@ -14,7 +15,8 @@
 //! | module | concept |
 //! |---|---|
 //! | [`cli`] | arguments, validation into a [`cli::Config`] |
-//! | [`generators`] | the six generators and spatial binning of objects |
+//! | [`generators`] | the six voxel generators and spatial binning of objects |
+//! | [`mesh`] | `--generator mesh`: mesh readers, BVH, signed distance field (f32, NRRD/NIfTI) |
 //! | [`order`] | file order: batches and parallel pieces, linear or bricked |
 //! | [`writer`] | pipelined, atomic writing |
 //! | [`progress`] | the progress bar |
@@ -28,6 +30,7 @@ pub mod cli;
 pub mod disk;
 pub mod error;
 pub mod generators;
+pub mod mesh;
 pub mod order;
 pub mod progress;
 pub mod signal;
@@ -121,7 +124,7 @@ impl Job {
 
 /// Refuses an existing file (without `force`), a missing directory and a disk
 /// with less than `need` bytes free.
-fn check_output(path: &Path, force: bool, need: u64) -> Result<()> {
+pub(crate) fn check_output(path: &Path, force: bool, need: u64) -> Result<()> {
     if path.as_os_str().is_empty() {
         return Err(Error::Usage("--output-file is empty".into()));
     }
@@ -167,6 +170,11 @@ pub fn run(cli: Cli) -> Result<Summary> {
         let _ = rayon::ThreadPoolBuilder::new()
             .num_threads(n)
             .build_global();
+    }
+    if config.generator == generators::GeneratorKind::Mesh {
+        // f32 samples computed whole, then saved as NRRD/NIfTI: not the
+        // streamed u8 `.vol` pipeline below.
+        return mesh::field::run(&config);
     }
     let job = Job::prepare(config)?;
     let c = job.config();

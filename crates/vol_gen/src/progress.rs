@@ -25,12 +25,27 @@ impl Progress {
         Progress { bar }
     }
 
+    /// A bar for `total` voxels computed (the mesh SDF, which is computed
+    /// before it is written).
+    pub fn voxels(total: u64, visible: bool) -> Self {
+        let bar = ProgressBar::with_draw_target(Some(total), ProgressDrawTarget::hidden());
+        if visible && std::io::stderr().is_terminal() {
+            bar.set_draw_target(ProgressDrawTarget::stderr());
+            if let Ok(style) = ProgressStyle::with_template(
+                "{spinner} [{elapsed_precise}] {wide_bar} {human_pos}/{human_len} voxels {per_sec} ETA {eta}",
+            ) {
+                bar.set_style(style);
+            }
+        }
+        Progress { bar }
+    }
+
     /// A bar that never draws.
     pub fn hidden() -> Self {
         Progress::new(0, false)
     }
 
-    /// Records `bytes` more written.
+    /// Records `bytes` more written (voxels for [`Progress::voxels`]).
     pub fn advance(&self, bytes: u64) {
         self.bar.inc(bytes);
     }

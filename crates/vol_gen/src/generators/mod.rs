@@ -36,6 +36,8 @@ pub enum GeneratorKind {
     Sdf,
     /// Density of Wyvill-kernel balls, 128 on the iso surface
     Metaballs,
+    /// Signed distance field (f32, negative inside) of the triangle mesh --mesh
+    Mesh,
 }
 
 impl GeneratorKind {
@@ -48,6 +50,7 @@ impl GeneratorKind {
             GeneratorKind::Sphere => "sphere",
             GeneratorKind::Sdf => "sdf",
             GeneratorKind::Metaballs => "metaballs",
+            GeneratorKind::Mesh => "mesh",
         }
     }
 }
@@ -202,6 +205,12 @@ pub fn build(kind: GeneratorKind, setup: &Setup) -> Result<Box<dyn Field>, Strin
         GeneratorKind::Sphere => Box::new(sphere::Sphere::new(setup)),
         GeneratorKind::Sdf => Box::new(sdf::Sdf::new(setup)?),
         GeneratorKind::Metaballs => Box::new(metaballs::Metaballs::new(setup)?),
+        // Not a voxel-by-voxel u8 field: `mesh::field::run` writes it.
+        GeneratorKind::Mesh => {
+            return Err(
+                "--generator mesh writes f32 samples; it is run by mesh::field::run".into(),
+            );
+        }
     })
 }
 
