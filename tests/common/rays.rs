@@ -49,7 +49,7 @@ impl<'a> RayLab<'a> {
         let lut = TfLut::new(tf, step);
         let skip = match iso {
             None => SkipGrid::build(scene.macrocells(), |lo, hi| lut.any_visible(lo, hi)),
-            Some(iso) => SkipGrid::build(scene.macrocells(), |lo, hi| lo <= iso && iso <= hi),
+            Some(iso) => SkipGrid::for_iso(scene.volume(), scene.macrocells(), iso),
         };
         RayLab {
             scene,
@@ -85,6 +85,8 @@ impl<'a> RayLab<'a> {
                     ert: None,
                     shading: None,
                     iso_value: lab.iso,
+                    lights: &[],
+                    shadows: false,
                     avg_norm: 255.0,
                 };
                 self.job.run(&ctx, &self.seg)
@@ -107,7 +109,7 @@ impl<'a> RayLab<'a> {
             fn run<V: Volume>(self, ctx: &FrameContext<'_, V>, seg: &RaySegment) -> Self::Out {
                 let mut st = IsoState::default();
                 let n = st.integrate(Span::whole(ctx, seg));
-                (st.hit.map(|(p, _)| ctx.volume.grid().voxel_to_world(p)), n)
+                (st.hit.map(|h| ctx.volume.grid().voxel_to_world(h.pos)), n)
             }
         }
         self.run(ray, ess, Iso).unwrap_or((None, 0))

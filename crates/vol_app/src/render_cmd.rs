@@ -82,8 +82,13 @@ pub fn run(args: &RenderArgs) -> Result<(), Error> {
         shading: args.shading.on(),
         phong: None,
         iso_value: args.iso.unwrap_or(0.5 * (lo + hi)),
+        lights: args.lights.clone(),
+        shadows: args.shadows.on(),
         background: args.background,
     };
+    if let Some(l) = args.lights.iter().find(|l| !(l.is_finite() && l.length() > 0.0)) {
+        return Err(format!("--light {l}: the direction must be finite and not zero").into());
+    }
     if let Some(s) = args.step
         && !(s.is_finite() && s > 0.0)
     {

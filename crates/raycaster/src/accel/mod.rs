@@ -13,10 +13,12 @@
 //! opening it again does not read every sample.
 
 pub mod cache;
+mod iso_cells;
 mod macrocell;
 mod runs;
 mod skip;
 
+pub use iso_cells::{CellMasks, IsoCells};
 pub use macrocell::MacrocellGrid;
 pub use runs::{RunKind, SampleRun, SkipRuns};
 pub use skip::{CellClass, SkipGrid};

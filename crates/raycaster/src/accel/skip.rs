@@ -5,7 +5,8 @@
 
 use glam::{UVec3, Vec3};
 
-use super::MacrocellGrid;
+use super::{IsoCells, MacrocellGrid};
+use crate::volume::AnyVolume;
 use crate::geometry::Aabb;
 use crate::volume::cell_coord;
 
@@ -39,6 +40,9 @@ pub struct SkipGrid {
     occupied: Vec<bool>,
     coarse_count: UVec3,
     distance: Vec<u8>,
+    /// For an iso value, the fine level: which interpolation cells of the
+    /// occupied macrocells straddle it.
+    iso_cells: Option<IsoCells>,
 }
 
 impl SkipGrid {
@@ -77,7 +81,29 @@ impl SkipGrid {
             occupied,
             coarse_count,
             distance,
+            iso_cells: None,
         }
+    }
+
+    /// The two-level occupancy of iso value `iso`: the macrocells whose
+    /// value range holds it, and in those the interpolation cells whose
+    /// corners straddle it ([`IsoCells`]).
+    pub fn for_iso(volume: &AnyVolume, cells: &MacrocellGrid, iso: f32) -> Self {
+        let mut grid = Self::build(cells, |lo, hi| lo <= iso && iso <= hi);
+        grid.iso_cells = Some(IsoCells::build(volume, cells, &grid, iso));
+        grid
+    }
+
+    /// The fine level, when built ([`SkipGrid::for_iso`]).
+    #[inline(always)]
+    pub fn iso_cells(&self) -> Option<&IsoCells> {
+        self.iso_cells.as_ref()
+    }
+
+    /// Whether the cell with index `i` in the macrocell grid is occupied.
+    #[inline(always)]
+    pub fn is_occupied_index(&self, i: usize) -> bool {
+        self.occupied[i]
     }
 
     /// A grid where every cell is occupied (skipping disabled).

@@ -22,14 +22,15 @@ mod shading;
 
 pub use avg::AvgState;
 pub use dvr::DvrState;
-pub use iso::IsoState;
+pub use iso::{CellCubic, IsoHit, IsoState};
 pub use mip::MipState;
 pub use segment::RaySegment;
 pub use shading::Phong;
 
-use glam::Vec4;
+use glam::{Vec3, Vec4};
 
 use crate::accel::{MacrocellGrid, SkipGrid, SkipRuns};
+use crate::scene::Scene;
 use crate::transfer::{TfLut, TransferFunction};
 use crate::volume::Volume;
 
@@ -100,12 +101,13 @@ pub enum Occupancy {
 }
 
 impl Occupancy {
-    /// The skip grid of this occupancy over `cells`, for the frame's TF
-    /// table and iso value.
-    pub fn skip_grid(self, cells: &MacrocellGrid, lut: &TfLut, iso: f32) -> SkipGrid {
+    /// The skip grid of this occupancy over the macrocells of `scene`, for
+    /// the frame's TF table and iso value.
+    pub fn skip_grid(self, scene: &Scene, lut: &TfLut, iso: f32) -> SkipGrid {
+        let cells = scene.macrocells();
         match self {
             Occupancy::Visible => SkipGrid::build(cells, |lo, hi| lut.any_visible(lo, hi)),
-            Occupancy::IsoValue => SkipGrid::build(cells, |lo, hi| lo <= iso && iso <= hi),
+            Occupancy::IsoValue => SkipGrid::for_iso(scene.volume(), cells, iso),
             Occupancy::Every => SkipGrid::all_occupied(cells),
         }
     }
@@ -209,6 +211,11 @@ pub struct FrameContext<'a, V: Volume> {
     pub shading: Option<Phong>,
     /// Iso value for [`RenderMode::Iso`].
     pub iso_value: f32,
+    /// Directional lights of [`RenderMode::Iso`]: unit world directions
+    /// towards each light; empty for a headlight.
+    pub lights: &'a [Vec3],
+    /// Shadow rays towards each light ([`RenderMode::Iso`]).
+    pub shadows: bool,
     /// Divisor of [`RenderMode::Avg`].
     pub avg_norm: f32,
 }

@@ -23,6 +23,9 @@ pub struct RaySegment {
     pub world_dir: Vec3,
     /// Entry parameter into the volume's box.
     pub t_in: f32,
+    /// Exit parameter from the volume's box (`t_k <= t_out` for every
+    /// sample).
+    pub t_out: f32,
     /// Sampling step (world units).
     pub step: f32,
     /// `1 / step`.
@@ -52,6 +55,7 @@ impl RaySegment {
             inv_dir: dir.recip(),
             world_dir: ray.dir,
             t_in,
+            t_out,
             step,
             inv_step: 1.0 / step,
             count: last + 1,

@@ -1,4 +1,5 @@
-//! Phong shading with a headlight.
+//! Phong shading: with a headlight (volume rendering) or with directional
+//! lights (isosurfaces).
 
 use glam::Vec3;
 
@@ -61,5 +62,27 @@ impl Phong {
             0.0
         };
         Some((self.ka + self.kd * ndotl, spec))
+    }
+
+    /// Diffuse factor and specular term of one directional light towards
+    /// `l` (unit) for unit normal `n` (facing the viewer) seen from the
+    /// direction `view` (unit, towards the eye): `kd·(N·L)` and
+    /// `ks·max(0, R·V)ⁿ` with `R = 2(N·L)N − L`; zero when the light is
+    /// behind the surface. With `l = view` this is [`Phong::terms`]'s
+    /// headlight.
+    #[inline]
+    pub fn light(&self, n: Vec3, l: Vec3, view: Vec3) -> (f32, f32) {
+        let ndotl = n.dot(l);
+        if ndotl <= 0.0 {
+            return (0.0, 0.0);
+        }
+        let r = n * (2.0 * ndotl) - l;
+        let rdotv = r.dot(view).max(0.0);
+        let spec = if self.ks > 0.0 {
+            self.ks * rdotv.powi(self.shininess)
+        } else {
+            0.0
+        };
+        (self.kd * ndotl, spec)
     }
 }

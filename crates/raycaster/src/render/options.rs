@@ -24,6 +24,11 @@ pub struct RenderOptions {
     pub phong: Option<Phong>,
     /// Iso value for [`RenderMode::Iso`].
     pub iso_value: f32,
+    /// Directional lights of [`RenderMode::Iso`] (world directions towards
+    /// each light, any length but not zero); empty = one headlight.
+    pub lights: Vec<Vec3>,
+    /// Shadow rays towards each light in [`RenderMode::Iso`].
+    pub shadows: bool,
     /// Background colour, 0..1.
     pub background: Vec3,
 }
@@ -39,6 +44,8 @@ impl Default for RenderOptions {
             shading: true,
             phong: None,
             iso_value: 128.0,
+            lights: Vec::new(),
+            shadows: false,
             background: Vec3::ZERO,
         }
     }

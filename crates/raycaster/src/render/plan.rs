@@ -76,7 +76,7 @@ impl PlanCache {
         self.entries.retain(|(k, _)| k.scene == key.scene);
         self.entries.truncate(PLAN_CACHE_ENTRIES - 1);
         let lut = TfLut::new(tf, step);
-        let skip = occupancy.skip_grid(scene.macrocells(), &lut, options.iso_value);
+        let skip = occupancy.skip_grid(scene, &lut, options.iso_value);
         let v = Arc::new((lut, skip));
         self.entries.insert(0, (key, v.clone()));
         v
@@ -97,6 +97,8 @@ pub struct FramePlan {
     pub prepared: Arc<(TfLut, SkipGrid)>,
     pub width: u32,
     pub height: u32,
+    /// The options' lights as unit vectors.
+    pub lights: Vec<glam::Vec3>,
 }
 
 impl FramePlan {
@@ -135,8 +137,20 @@ impl FramePlan {
                 format!("{} must be in (0, 1]", options.ert_threshold),
             ));
         }
+        let mut lights = Vec::with_capacity(options.lights.len());
+        for l in &options.lights {
+            let unit = l.normalize_or_zero();
+            if unit == glam::Vec3::ZERO || !unit.is_finite() {
+                return Err(Error::option(
+                    "light",
+                    format!("direction {l} must be finite and not zero"),
+                ));
+            }
+            lights.push(unit);
+        }
         let prepared = cache.get(scene, tf, step, options);
         Ok(FramePlan {
+            lights,
             rect: frame.screen_rect(&grid.bounds()),
             camera: frame,
             step,
@@ -171,6 +185,8 @@ impl FramePlan {
             ert: options.ert.then_some(options.ert_threshold),
             shading,
             iso_value: options.iso_value,
+            lights: &self.lights,
+            shadows: options.shadows,
             avg_norm: <V::Sample as crate::sample::Sample>::TYPE.max_value(),
         }
     }

@@ -1,0 +1,242 @@
+//! [`IsoCells`]: the fine level of the isosurface's two-level occupancy
+//! grid, which interpolation cells of each occupied macrocell straddle the
+//! iso value.
+//!
+//! The coarse level is the [`SkipGrid`](super::SkipGrid) built for the iso
+//! value (macrocells whose value range holds it). For each of those
+//! macrocells this keeps two bit sets over its `m³` interpolation cells (as
+//! the seed thesis's bit grid of 4×4×4 fine cells per coarse cell): the
+//! cells whose 8 corners straddle the iso value, where a ray must solve for
+//! the crossing, and the cells that lie wholly at or above it, so a ray
+//! walking past cells it need not open still knows which side of the
+//! surface it is on. Only occupied macrocells are visited, so a new iso
+//! value costs a pass over the surface's macrocells, not over the volume.
+
+use glam::UVec3;
+use rayon::prelude::*;
+
+use super::{MacrocellGrid, SkipGrid};
+use crate::volume::{AnyVolume, Volume, VolumeVisitor};
+
+/// Per occupied macrocell, which of its interpolation cells straddle the
+/// iso value and which lie at or above it.
+#[derive(Debug, Clone)]
+pub struct IsoCells {
+    side: u32,
+    words: usize,
+    /// Per macrocell: the index of its bit sets in `bits`, or `u32::MAX`
+    /// for a macrocell the coarse level calls empty.
+    slot: Vec<u32>,
+    /// Per occupied macrocell `2·words` words: straddling cells, then cells
+    /// at or above the iso value; bit `(x·m + y)·m + z` is local cell
+    /// `(x, y, z)`.
+    bits: Vec<u64>,
+}
+
+/// The bit sets of one occupied macrocell.
+#[derive(Debug, Clone, Copy)]
+pub struct CellMasks<'a> {
+    side: u32,
+    straddle: &'a [u64],
+    above: &'a [u64],
+}
+
+impl CellMasks<'_> {
+    /// The macrocell side `m`.
+    #[inline(always)]
+    pub fn side(&self) -> u32 {
+        self.side
+    }
+
+    #[inline(always)]
+    fn bit(&self, local: UVec3) -> (usize, u64) {
+        let i = ((local.x * self.side + local.y) * self.side + local.z) as usize;
+        (i >> 6, 1u64 << (i & 63))
+    }
+
+    /// Whether local cell `local` (each coordinate `< m`) straddles the iso
+    /// value.
+    #[inline(always)]
+    pub fn straddles(&self, local: UVec3) -> bool {
+        let (w, b) = self.bit(local);
+        self.straddle[w] & b != 0
+    }
+
+    /// Whether local cell `local` lies wholly at or above the iso value
+    /// (meaningful for a cell that does not straddle it).
+    #[inline(always)]
+    pub fn above(&self, local: UVec3) -> bool {
+        let (w, b) = self.bit(local);
+        self.above[w] & b != 0
+    }
+
+    /// True when no cell of the macrocell straddles the iso value.
+    #[inline(always)]
+    pub fn none_straddle(&self) -> bool {
+        self.straddle.iter().all(|&w| w == 0)
+    }
+}
+
+impl IsoCells {
+    /// The bit sets of the macrocells `skip` marks occupied, for `iso`.
+    pub fn build(volume: &AnyVolume, macrocells: &MacrocellGrid, skip: &SkipGrid, iso: f32) -> Self {
+        struct Build<'a> {
+            macrocells: &'a MacrocellGrid,
+            skip: &'a SkipGrid,
+            iso: f32,
+        }
+        impl VolumeVisitor for Build<'_> {
+            type Output = IsoCells;
+            fn visit<V: Volume>(self, volume: &V) -> IsoCells {
+                IsoCells::build_typed(volume, self.macrocells, self.skip, self.iso)
+            }
+        }
+        volume.visit(Build {
+            macrocells,
+            skip,
+            iso,
+        })
+    }
+
+    fn build_typed<V: Volume>(
+        volume: &V,
+        macrocells: &MacrocellGrid,
+        skip: &SkipGrid,
+        iso: f32,
+    ) -> Self {
+        let m = macrocells.cell;
+        let n = macrocells.count;
+        let words = ((m * m * m) as usize).div_ceil(64);
+        let occupied: Vec<u32> = (0..n.x * n.y * n.z)
+            .filter(|&i| skip.is_occupied_index(i as usize))
+            .collect();
+        let mut slot = vec![u32::MAX; macrocells.ranges.len()];
+        for (s, &i) in occupied.iter().enumerate() {
+            slot[i as usize] = s as u32;
+        }
+        let dims = volume.grid().dims;
+        let last = dims.max(UVec3::splat(2)) - UVec3::splat(2);
+        let mut bits = vec![0u64; occupied.len() * 2 * words];
+        bits.par_chunks_mut(2 * words)
+            .zip(occupied.par_iter())
+            .for_each(|(out, &i)| {
+                let (straddle, above) = out.split_at_mut(words);
+                let c = UVec3::new(i / (n.y * n.z), (i / n.z) % n.y, i % n.z);
+                let origin = c * m;
+                for x in 0..m {
+                    for y in 0..m {
+                        for z in 0..m {
+                            let cell = origin + UVec3::new(x, y, z);
+                            if cell.cmpgt(last).any() {
+                                continue;
+                            }
+                            let corners = volume.corners(cell);
+                            let (lo, hi) = corners
+                                .iter()
+                                .fold((f32::INFINITY, f32::NEG_INFINITY), |(lo, hi), &v| {
+                                    (lo.min(v), hi.max(v))
+                                });
+                            let b = ((x * m + y) * m + z) as usize;
+                            let (w, bit) = (b >> 6, 1u64 << (b & 63));
+                            if lo >= iso {
+                                above[w] |= bit;
+                            } else if hi >= iso {
+                                straddle[w] |= bit;
+                            }
+                        }
+                    }
+                }
+            });
+        IsoCells {
+            side: m,
+            words,
+            slot,
+            bits,
+        }
+    }
+
+    /// The macrocell side these masks are for.
+    pub fn side(&self) -> u32 {
+        self.side
+    }
+
+    /// The bit sets of macrocell `index` (its index in the macrocell grid),
+    /// `None` when the coarse level calls it empty.
+    #[inline(always)]
+    pub fn masks(&self, index: usize) -> Option<CellMasks<'_>> {
+        let s = self.slot[index];
+        if s == u32::MAX {
+            return None;
+        }
+        let at = s as usize * 2 * self.words;
+        Some(CellMasks {
+            side: self.side,
+            straddle: &self.bits[at..at + self.words],
+            above: &self.bits[at + self.words..at + 2 * self.words],
+        })
+    }
+
+    /// How many interpolation cells straddle the iso value.
+    pub fn straddling_count(&self) -> usize {
+        self.bits
+            .chunks(2 * self.words)
+            .map(|c| c[..self.words].iter().map(|w| w.count_ones() as usize).sum::<usize>())
+            .sum()
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::volume::Grid;
+    use glam::Vec3;
+
+    #[test]
+    fn masks_agree_with_each_cells_corners() {
+        let grid = Grid::new(UVec3::new(19, 14, 23), Vec3::ONE);
+        let f = |v: UVec3| {
+            let d = v.as_vec3() - Vec3::new(9.0, 7.0, 11.0);
+            (d.length() * 10.0) as u8
+        };
+        let volume = AnyVolume::from_fn(grid, f);
+        for side in [2, 4, 5] {
+            let cells = MacrocellGrid::build_any(&volume, side, None);
+            for iso in [35.5f32, 60.0, 61.0] {
+                let skip = SkipGrid::build(&cells, |lo, hi| lo <= iso && iso <= hi);
+                let masks = IsoCells::build(&volume, &cells, &skip, iso);
+                let mut straddling = 0;
+                for x in 0..18 {
+                    for y in 0..13 {
+                        for z in 0..22 {
+                            let cell = UVec3::new(x, y, z);
+                            let corners: Vec<f32> = (0..8)
+                                .map(|n| {
+                                    f(cell + UVec3::new(n >> 2, (n >> 1) & 1, n & 1)) as f32
+                                })
+                                .collect();
+                            let lo = corners.iter().copied().fold(f32::INFINITY, f32::min);
+                            let hi = corners.iter().copied().fold(f32::NEG_INFINITY, f32::max);
+                            let mc = cell / side;
+                            let index = ((mc.x * cells.count.y + mc.y) * cells.count.z + mc.z)
+                                as usize;
+                            let want = lo < iso && iso <= hi;
+                            straddling += want as usize;
+                            match masks.masks(index) {
+                                Some(m) => {
+                                    let local = cell - mc * side;
+                                    assert_eq!(m.straddles(local), want, "cell {cell}");
+                                    if !want {
+                                        assert_eq!(m.above(local), lo >= iso, "cell {cell}");
+                                    }
+                                }
+                                None => assert!(!want, "cell {cell} in an empty macrocell"),
+                            }
+                        }
+                    }
+                }
+                assert!(straddling > 0);
+                assert_eq!(masks.straddling_count(), straddling);
+            }
+        }
+    }
+}

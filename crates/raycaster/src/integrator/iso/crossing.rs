@@ -1,0 +1,232 @@
+//! The first crossing of an iso value by the trilinear interpolant along a
+//! ray inside one cell.
+//!
+//! Along a ray, the trilinear interpolant of a cell is a cubic in the ray
+//! parameter (each of the three fractions is linear in it). The crossing is
+//! found by root isolation rather than a closed formula: the cubic's extrema
+//! (roots of its derivative, a quadratic) cut the interval into pieces on
+//! which it is monotonic, and the first piece whose ends lie on different
+//! sides of the iso value holds the first crossing, which Newton's method,
+//! kept inside a shrinking bracket, then pins down. This finds two
+//! crossings in one cell (which a linear estimate from the cell's entry and
+//! exit values misses) and stays stable near double roots, where Cardano's
+//! formula loses its digits.
+
+use glam::Vec3;
+
+use crate::volume::Corners;
+
+/// `g(t) = f(t) − iso` along a ray inside one cell, `t` measured from the
+/// point where the ray enters the cell: `a·t³ + b·t² + c·t + d`.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct CellCubic {
+    a: f32,
+    b: f32,
+    c: f32,
+    d: f32,
+}
+
+impl CellCubic {
+    /// The cubic of cell `corners` for the ray that is at fractions `p0`
+    /// inside the cell at `t = 0` and moves by `dir` (cell units per unit of
+    /// `t`), minus `iso`.
+    #[inline]
+    pub fn new(corners: &Corners, p0: Vec3, dir: Vec3, iso: f32) -> Self {
+        // Each fraction is u(t) = p0 + dir·t, and 1 − u(t) = (1 − p0) − dir·t.
+        // Interpolating along x, then y, then z with these linear weights
+        // multiplies polynomials: linear after x, quadratic after y, cubic
+        // after z.
+        let lin = |v0: f32, v1: f32, u0: f32, du: f32| {
+            // v0·((1 − u0) − du·t) + v1·(u0 + du·t)
+            (v0 + (v1 - v0) * u0, (v1 - v0) * du)
+        };
+        let x: [(f32, f32); 4] = std::array::from_fn(|jk| {
+            lin(corners[jk], corners[4 + jk], p0.x, dir.x)
+        });
+        // (a0 + a1·t)·(w0 + w1·t) + (b0 + b1·t)·(s0 + s1·t) with
+        // w = 1 − u and s = u along y.
+        let (wy0, wy1, sy0, sy1) = (1.0 - p0.y, -dir.y, p0.y, dir.y);
+        let y: [(f32, f32, f32); 2] = std::array::from_fn(|k| {
+            let (a0, a1) = x[k];
+            let (b0, b1) = x[2 + k];
+            (
+                a0 * wy0 + b0 * sy0,
+                a0 * wy1 + a1 * wy0 + b0 * sy1 + b1 * sy0,
+                a1 * wy1 + b1 * sy1,
+            )
+        });
+        let (wz0, wz1, sz0, sz1) = (1.0 - p0.z, -dir.z, p0.z, dir.z);
+        let ((a0, a1, a2), (b0, b1, b2)) = (y[0], y[1]);
+        CellCubic {
+            a: a2 * wz1 + b2 * sz1,
+            b: a1 * wz1 + a2 * wz0 + b1 * sz1 + b2 * sz0,
+            c: a0 * wz1 + a1 * wz0 + b0 * sz1 + b1 * sz0,
+            d: a0 * wz0 + b0 * sz0 - iso,
+        }
+    }
+
+    /// `g(t)`.
+    #[inline(always)]
+    pub fn eval(&self, t: f32) -> f32 {
+        ((self.a * t + self.b) * t + self.c) * t + self.d
+    }
+
+    /// The roots of `g'(t) = 3a·t² + 2b·t + c` strictly inside `(0, len)`,
+    /// in increasing order (`NaN` for a missing one).
+    #[inline]
+    fn extrema(&self, len: f32) -> [f32; 2] {
+        let (qa, qb, qc) = (3.0 * self.a, 2.0 * self.b, self.c);
+        let mut r = [f32::NAN; 2];
+        let scale = qa.abs().max(qb.abs()).max(qc.abs());
+        if scale == 0.0 {
+            return r;
+        }
+        if qa.abs() <= 1e-7 * scale {
+            // Effectively a quadratic g: one extremum.
+            if qb != 0.0 {
+                r[0] = -qc / qb;
+            }
+        } else {
+            let disc = qb * qb - 4.0 * qa * qc;
+            if disc < 0.0 {
+                return r;
+            }
+            // The stable pair: q = −(b + sign(b)·√disc)/2, roots q/a and c/q.
+            let s = disc.sqrt();
+            let q = -0.5 * (qb + if qb >= 0.0 { s } else { -s });
+            let (r0, r1) = (q / qa, if q != 0.0 { qc / q } else { f32::NAN });
+            r = if r0 <= r1 { [r0, r1] } else { [r1, r0] };
+        }
+        for x in &mut r {
+            if !(*x > 0.0 && *x < len) {
+                *x = f32::NAN;
+            }
+        }
+        if r[0].is_nan() {
+            r = [r[1], f32::NAN];
+        }
+        r
+    }
+
+    /// The first `t` in `[0, len]` where `g` changes side (`g ≥ 0` against
+    /// `g < 0`) relative to `g(0)`, to within `tol` in `t`; `None` when it
+    /// stays on one side. `g(0)` itself decides the side it starts on.
+    #[inline]
+    pub fn first_crossing(&self, len: f32, tol: f32) -> Option<f32> {
+        let g0 = self.eval(0.0);
+        let side = g0 >= 0.0;
+        let [e0, e1] = self.extrema(len);
+        let mut lo = 0.0f32;
+        for hi in [e0, e1, len] {
+            if hi.is_nan() {
+                continue;
+            }
+            let g_hi = self.eval(hi);
+            if (g_hi >= 0.0) != side {
+                return Some(self.refine(lo, hi, side, tol));
+            }
+            lo = hi;
+        }
+        None
+    }
+
+    /// `g'(t)`.
+    #[inline(always)]
+    fn slope(&self, t: f32) -> f32 {
+        (3.0 * self.a * t + 2.0 * self.b) * t + self.c
+    }
+
+    /// The crossing in `[lo, hi]`, where `g` is monotonic, `g(lo)` on
+    /// `side` and `g(hi)` not: Newton's method kept inside the shrinking
+    /// bracket (a bisection step whenever Newton would leave it), until a
+    /// step or the bracket is shorter than `tol`.
+    #[inline]
+    fn refine(&self, mut lo: f32, mut hi: f32, side: bool, tol: f32) -> f32 {
+        let mut t = 0.5 * (lo + hi);
+        for _ in 0..48 {
+            let g = self.eval(t);
+            if (g >= 0.0) == side {
+                lo = t;
+            } else {
+                hi = t;
+            }
+            if hi - lo <= tol {
+                return 0.5 * (lo + hi);
+            }
+            let d = self.slope(t);
+            let newton = t - g / d;
+            let next = if newton > lo && newton < hi {
+                newton
+            } else {
+                0.5 * (lo + hi)
+            };
+            if (next - t).abs() <= 0.5 * tol {
+                return next;
+            }
+            t = next;
+        }
+        t
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::volume::interpolate;
+
+    fn random_corners(rng: &mut fastrand::Rng) -> Corners {
+        std::array::from_fn(|_| rng.f32() * 2.0 - 1.0)
+    }
+
+    #[test]
+    fn the_cubic_is_the_trilinear_interpolant_along_the_ray() {
+        let mut rng = fastrand::Rng::with_seed(5);
+        for _ in 0..1000 {
+            let c = random_corners(&mut rng);
+            let p0 = Vec3::new(rng.f32(), rng.f32(), rng.f32());
+            let dir = Vec3::new(rng.f32() - 0.5, rng.f32() - 0.5, rng.f32() - 0.5);
+            let g = CellCubic::new(&c, p0, dir, 0.25);
+            for i in 0..=10 {
+                let t = i as f32 * 0.1;
+                let want = interpolate(&c, p0 + dir * t) - 0.25;
+                assert!((g.eval(t) - want).abs() < 1e-5, "{} vs {want}", g.eval(t));
+            }
+        }
+    }
+
+    #[test]
+    fn finds_the_first_of_several_crossings_and_misses_none() {
+        let mut rng = fastrand::Rng::with_seed(6);
+        let mut doubles = 0;
+        for _ in 0..5000 {
+            let c = random_corners(&mut rng);
+            let p0 = Vec3::new(rng.f32(), rng.f32(), 0.0);
+            let dir = Vec3::new(rng.f32() - 0.5, rng.f32() - 0.5, 1.0) * 0.9;
+            let g = CellCubic::new(&c, p0, dir, 0.0);
+            // Brute force: the first sign change on a fine grid of t.
+            let n = 20000;
+            let side = g.eval(0.0) >= 0.0;
+            let brute = (1..=n)
+                .map(|i| i as f32 / n as f32)
+                .find(|&t| (g.eval(t) >= 0.0) != side);
+            let got = g.first_crossing(1.0, 1e-6);
+            match (brute, got) {
+                (None, None) => {}
+                (Some(b), Some(t)) => {
+                    // The brute force may step over a pair of crossings
+                    // closer together than its grid: then ours comes first.
+                    assert!(
+                        (b - t).abs() <= 2.0 / n as f32 || t < b,
+                        "found {t}, brute force {b}"
+                    );
+                    doubles += ((g.eval(1.0) >= 0.0) == side) as usize;
+                }
+                // Bisection ends on a real change of side, which the brute
+                // force's grid may step over when two crossings are close.
+                (None, Some(_)) => {}
+                (Some(b), None) => panic!("missed the crossing at {b} for {c:?}"),
+            }
+        }
+        assert!(doubles > 0, "no ray crossed twice: the test tests nothing");
+    }
+}

@@ -1,0 +1,391 @@
+//! Isosurfaces: the first crossing of the iso value by the trilinear
+//! interpolant along the ray, found exactly, cell by cell.
+//!
+//! The search walks two levels. Macrocells (the frame's [`SkipGrid`] for the
+//! iso value) whose value range excludes the iso value are jumped over,
+//! through the largest empty box the grid knows; inside a macrocell whose
+//! range holds it, a 3D DDA (Amanatides–Woo) visits the interpolation cells
+//! the ray crosses, and in each cell whose corners straddle the iso value
+//! [`CellCubic`] finds the first crossing of the cubic the interpolant is
+//! along the ray. A crossing between two sample positions is never missed:
+//! the walk does not sample at all.
+//!
+//! Robustness: the DDA's plane parameters are computed from each plane's
+//! coordinate, never accumulated, so they cannot drift out of the
+//! macrocell; every cell and macrocell is entered at a point found from the
+//! ray itself (the first point past its entry); and the side of the iso
+//! value the ray is on is carried from cell to cell, so a crossing that
+//! falls in a sliver the walk stepped across (a ray grazing an edge, a
+//! rounding at a face) is still reported, at the sliver's end. A direction
+//! component of ±0 never steps along its axis.
+//!
+//! The same walk answers shadow rays, from the hit towards each light.
+
+mod crossing;
+
+pub use crossing::CellCubic;
+
+use glam::{IVec3, UVec3, Vec3, Vec4};
+
+use super::{FrameContext, Integrator, Occupancy, Span};
+use crate::accel::{CellClass, CellMasks, SkipGrid};
+use crate::geometry::Aabb;
+use crate::volume::Volume;
+
+/// Where a ray first crosses the iso value.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct IsoHit {
+    /// Ray parameter (world units).
+    pub t: f32,
+    /// Voxel-space position.
+    pub pos: Vec3,
+    /// The interpolation cell the crossing lies in.
+    pub cell: UVec3,
+    /// World direction of the ray (unit), for shading.
+    pub world_dir: Vec3,
+}
+
+/// The search state of an iso ray.
+#[derive(Debug, Clone, Copy, Default)]
+pub struct IsoState {
+    /// The side of the iso value (`value ≥ iso`) where the walk so far
+    /// ended, once known.
+    side: Option<bool>,
+    /// The first crossing, once found.
+    pub hit: Option<IsoHit>,
+}
+
+impl Integrator for IsoState {
+    const SPLITS_RAYS: bool = false;
+
+    const OCCUPANCY: Occupancy = Occupancy::IsoValue;
+
+    /// Searches the part of the ray from sample `start` to sample `end`
+    /// (the box's exit for the last piece) for the first crossing. Returns
+    /// the number of cells visited.
+    #[inline]
+    fn integrate<V: Volume>(&mut self, span: Span<'_, V>) -> u64 {
+        if self.hit.is_some() {
+            return 0;
+        }
+        let (ctx, seg) = (span.ctx, span.seg);
+        let t0 = seg.t(span.start);
+        let t1 = if span.end >= seg.count {
+            seg.t_out
+        } else {
+            seg.t(span.end)
+        };
+        let ray = VoxelRay::new(seg.origin, seg.dir);
+        let mut search = Search::new(ctx.volume, ctx.iso_value, self.side);
+        search.walk(ctx.ess.then_some(ctx.skip), &ray, t0, t1);
+        self.side = search.side;
+        if let Some((t, cell)) = search.hit {
+            self.hit = Some(IsoHit {
+                t,
+                pos: ray.at(t),
+                cell,
+                world_dir: seg.world_dir,
+            });
+        }
+        search.steps
+    }
+
+    fn is_done(&self) -> bool {
+        self.hit.is_some()
+    }
+
+    /// The TF colour at the iso value, lit by the frame's lights (Phong,
+    /// shadow rays when asked) when shading is on; opaque.
+    fn resolve<V: Volume>(&self, ctx: &FrameContext<'_, V>) -> Vec4 {
+        let Some(hit) = self.hit else {
+            return Vec4::ZERO;
+        };
+        let c = ctx.tf.evaluate(ctx.iso_value).truncate();
+        let rgb = match &ctx.shading {
+            Some(ph) => {
+                let g = ctx.volume.gradient(hit.pos);
+                let len = g.length();
+                if len > 0.0 && len.is_finite() {
+                    // Two-sided: the normal faces the camera.
+                    let view = -hit.world_dir;
+                    let n = g / len;
+                    let n = if n.dot(view) < 0.0 { -n } else { n };
+                    let headlight = [view];
+                    let lights = if ctx.lights.is_empty() {
+                        &headlight[..]
+                    } else {
+                        ctx.lights
+                    };
+                    let mut rgb = c * ph.ka;
+                    for &l in lights {
+                        let ndotl = n.dot(l);
+                        if ndotl <= 0.0 || (ctx.shadows && in_shadow(ctx, hit.pos, n, l)) {
+                            continue;
+                        }
+                        let (diffuse, spec) = ph.light(n, l, view);
+                        rgb += c * diffuse + Vec3::splat(spec);
+                    }
+                    rgb
+                } else {
+                    c * ph.ka
+                }
+            }
+            None => c,
+        };
+        rgb.extend(1.0)
+    }
+}
+
+/// Whether the surface point `p` (voxel space) with normal `n` (world,
+/// facing the light) is hidden from a directional light towards `l`
+/// (world, unit) by the isosurface.
+fn in_shadow<V: Volume>(ctx: &FrameContext<'_, V>, p: Vec3, n: Vec3, l: Vec3) -> bool {
+    let grid = ctx.volume.grid();
+    // Leave the surface along the normal first: a shadow ray that started
+    // on the surface could find the surface itself (shadow acne).
+    let normal_vox = (n / grid.spacing).normalize_or_zero();
+    let origin = p + normal_vox * SHADOW_OFFSET;
+    let ray = VoxelRay::new(origin, l / grid.spacing);
+    let bounds = Aabb::new(Vec3::ZERO, grid.max_coord());
+    let t1 = bounds.exit(ray.origin, ray.inv_dir);
+    if !(t1 > 0.0) {
+        return false;
+    }
+    let mut search = Search::new(ctx.volume, ctx.iso_value, None);
+    search.walk(ctx.ess.then_some(ctx.skip), &ray, 0.0, t1);
+    search.hit.is_some()
+}
+
+/// How far (voxels) a shadow ray starts from the surface, along the normal.
+const SHADOW_OFFSET: f32 = 0.05;
+
+/// A ray in voxel space, `origin + dir·t`, with what its walk needs.
+#[derive(Debug, Clone, Copy)]
+pub(crate) struct VoxelRay {
+    pub origin: Vec3,
+    pub dir: Vec3,
+    pub inv_dir: Vec3,
+    /// The DDA's step per axis: ±1, or 0 for a direction component of ±0.
+    step: IVec3,
+    /// A parameter step of 10⁻⁴ voxel: how far past a face the walk looks
+    /// to decide which cell comes next.
+    nudge: f32,
+    /// The tolerance of a crossing's parameter (10⁻⁵ voxel).
+    tol: f32,
+}
+
+impl VoxelRay {
+    pub fn new(origin: Vec3, dir: Vec3) -> Self {
+        let axis_step = |d: f32| (d > 0.0) as i32 - (d < 0.0) as i32;
+        VoxelRay {
+            origin,
+            dir,
+            inv_dir: dir.recip(),
+            step: IVec3::new(axis_step(dir.x), axis_step(dir.y), axis_step(dir.z)),
+            nudge: 1e-4 / dir.abs().max_element().max(1e-30),
+            tol: 1e-5 / dir.length().max(1e-30),
+        }
+    }
+
+    #[inline(always)]
+    pub fn at(&self, t: f32) -> Vec3 {
+        self.origin + self.dir * t
+    }
+}
+
+/// One walk along a ray for the first crossing.
+pub(crate) struct Search<'v, V: Volume> {
+    volume: &'v V,
+    iso: f32,
+    /// The side of the iso value where the walk so far ended.
+    pub side: Option<bool>,
+    /// The crossing: ray parameter and cell.
+    pub hit: Option<(f32, UVec3)>,
+    /// Cells visited (the DDA's steps).
+    pub steps: u64,
+}
+
+impl<'v, V: Volume> Search<'v, V> {
+    pub fn new(volume: &'v V, iso: f32, side: Option<bool>) -> Self {
+        Search {
+            volume,
+            iso,
+            side,
+            hit: None,
+            steps: 0,
+        }
+    }
+
+    /// Walks `[t0, t1]` of `ray` until the first crossing: over the
+    /// macrocells of `skip` (all of the interval as one occupied stretch
+    /// when `None`), cell by cell inside the occupied ones.
+    pub fn walk(&mut self, skip: Option<&SkipGrid>, ray: &VoxelRay, t0: f32, t1: f32) {
+        let Some(skip) = skip else {
+            self.cells(ray, t0, t1, None);
+            return;
+        };
+        let fine = skip.iso_cells();
+        let nudge = ray.nudge;
+        let mut t = t0;
+        while t < t1 && self.hit.is_none() {
+            // Classify the first point past `t`, not `t` itself, which may
+            // lie on the face of the box just left.
+            let probe = ray.at(t + nudge.min(0.5 * (t1 - t)));
+            let (bounds, occupied) = match skip.classify(probe) {
+                CellClass::Empty(b) => (b, None),
+                CellClass::Occupied { bounds, index } => (bounds, Some(index)),
+            };
+            let exit = bounds.exit(ray.origin, ray.inv_dir).min(t1);
+            let next = exit.max(t + nudge);
+            if let Some(index) = occupied {
+                let masks = fine.and_then(|f| {
+                    let m = f.masks(index)?;
+                    Some((m, (bounds.min + 0.5).as_uvec3()))
+                });
+                self.cells(ray, t, next.min(t1), masks);
+            }
+            // Across an empty box the side stays: its values are all on one
+            // side, and they meet the cells around it continuously.
+            t = next;
+        }
+    }
+
+    /// The DDA over the interpolation cells between `ta` and `tb`; with
+    /// `masks`, those of one macrocell (its fine bit sets and its lowest
+    /// cell), opening only the cells that straddle the iso value.
+    fn cells(&mut self, ray: &VoxelRay, ta: f32, tb: f32, masks: Option<(CellMasks<'_>, UVec3)>) {
+        if !(ta < tb) {
+            return;
+        }
+        let grid = self.volume.grid();
+        let mut last = (grid.dims.max(UVec3::splat(2)) - UVec3::splat(2)).as_ivec3();
+        let mut first = IVec3::ZERO;
+        if let Some((_, origin)) = masks {
+            // Stay inside the macrocell: its cells are origin .. origin + m.
+            first = origin.as_ivec3();
+            last = last.min(first + IVec3::splat(masks_side(&masks) as i32 - 1));
+        }
+        let nudge = ray.nudge;
+        let start = ray.at(ta + nudge.min(0.5 * (tb - ta)));
+        let mut cell = start.floor().as_ivec3().clamp(first, last);
+        if let Some((m, origin)) = &masks
+            && m.none_straddle()
+        {
+            // One side throughout (cells that share corners cannot lie on
+            // opposite sides without one of them straddling).
+            self.steps += 1;
+            let side = m.above(cell.as_uvec3() - *origin);
+            if self.side == Some(!side) {
+                self.hit = Some((ta, cell.as_uvec3()));
+            } else {
+                self.side = Some(side);
+            }
+            return;
+        }
+        let step = ray.step;
+        // The parameter where the ray crosses the next cell plane per axis,
+        // from the plane's coordinate (never accumulated).
+        let plane_t = |cell: IVec3, a: usize| -> f32 {
+            match step[a] {
+                0 => f32::INFINITY,
+                s => {
+                    let plane = (cell[a] + (s > 0) as i32) as f32;
+                    (plane - ray.origin[a]) * ray.inv_dir[a]
+                }
+            }
+        };
+        let mut next = Vec3::new(plane_t(cell, 0), plane_t(cell, 1), plane_t(cell, 2));
+        let tol = ray.tol;
+        let mut tc = ta;
+        loop {
+            let te = next.min_element().min(tb).max(tc);
+            self.steps += 1;
+            let c = cell.as_uvec3();
+            let found = match &masks {
+                Some((m, origin)) => {
+                    let local = c - *origin;
+                    if m.straddles(local) {
+                        self.crossing(ray, c, tc, te, tol)
+                    } else {
+                        self.one_side(m.above(local), tc, c)
+                    }
+                }
+                None => self.cell(ray, c, tc, te, tol),
+            };
+            if found || te >= tb {
+                return;
+            }
+            let a = if next.x <= next.y && next.x <= next.z {
+                0
+            } else if next.y <= next.z {
+                1
+            } else {
+                2
+            };
+            cell[a] += step[a];
+            if cell[a] < first[a] || cell[a] > last[a] {
+                return;
+            }
+            next[a] = plane_t(cell, a);
+            tc = te;
+        }
+    }
+
+    /// A cell wholly on one side (`above`: at or above the iso value),
+    /// entered at `tc`: a hit there when the ray arrives from the other
+    /// side. True when found.
+    #[inline(always)]
+    fn one_side(&mut self, above: bool, tc: f32, cell: UVec3) -> bool {
+        if self.side == Some(!above) {
+            self.hit = Some((tc, cell));
+            return true;
+        }
+        self.side = Some(above);
+        false
+    }
+
+    /// Looks for the crossing inside `cell` on `[tc, te]`, deciding from its
+    /// corners whether it can hold one; true when found.
+    #[inline]
+    fn cell(&mut self, ray: &VoxelRay, cell: UVec3, tc: f32, te: f32, tol: f32) -> bool {
+        let corners = self.volume.corners(cell);
+        let (lo, hi) = corners
+            .iter()
+            .fold((f32::INFINITY, f32::NEG_INFINITY), |(lo, hi), &v| {
+                (lo.min(v), hi.max(v))
+            });
+        if lo >= self.iso || hi < self.iso {
+            // The whole cell lies on one side (the interpolant is a convex
+            // combination of the corners).
+            return self.one_side(lo >= self.iso, tc, cell);
+        }
+        self.crossing(ray, cell, tc, te, tol)
+    }
+
+    /// Solves for the first crossing inside `cell`, whose corners straddle
+    /// the iso value, on `[tc, te]`; true when found.
+    #[inline]
+    fn crossing(&mut self, ray: &VoxelRay, cell: UVec3, tc: f32, te: f32, tol: f32) -> bool {
+        let corners = self.volume.corners(cell);
+        let p0 = ray.at(tc) - cell.as_vec3();
+        let cubic = CellCubic::new(&corners, p0, ray.dir, self.iso);
+        let start_side = cubic.eval(0.0) >= 0.0;
+        if self.side == Some(!start_side) {
+            self.hit = Some((tc, cell));
+            return true;
+        }
+        let len = te - tc;
+        if let Some(dt) = cubic.first_crossing(len, tol) {
+            self.hit = Some((tc + dt, cell));
+            return true;
+        }
+        self.side = Some(cubic.eval(len) >= 0.0);
+        false
+    }
+}
+
+/// The macrocell side of a fine level's masks.
+#[inline(always)]
+fn masks_side(masks: &Option<(CellMasks<'_>, UVec3)>) -> u32 {
+    masks.as_ref().map_or(1, |(m, _)| m.side())
+}
