@@ -86,7 +86,11 @@ pub fn run(args: &RenderArgs) -> Result<(), Error> {
         shadows: args.shadows.on(),
         background: args.background,
     };
-    if let Some(l) = args.lights.iter().find(|l| !(l.is_finite() && l.length() > 0.0)) {
+    if let Some(l) = args
+        .lights
+        .iter()
+        .find(|l| !(l.is_finite() && l.length() > 0.0))
+    {
         return Err(format!("--light {l}: the direction must be finite and not zero").into());
     }
     if let Some(s) = args.step

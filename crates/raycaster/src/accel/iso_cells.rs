@@ -79,7 +79,12 @@ impl CellMasks<'_> {
 
 impl IsoCells {
     /// The bit sets of the macrocells `skip` marks occupied, for `iso`.
-    pub fn build(volume: &AnyVolume, macrocells: &MacrocellGrid, skip: &SkipGrid, iso: f32) -> Self {
+    pub fn build(
+        volume: &AnyVolume,
+        macrocells: &MacrocellGrid,
+        skip: &SkipGrid,
+        iso: f32,
+    ) -> Self {
         struct Build<'a> {
             macrocells: &'a MacrocellGrid,
             skip: &'a SkipGrid,
@@ -180,7 +185,12 @@ impl IsoCells {
     pub fn straddling_count(&self) -> usize {
         self.bits
             .chunks(2 * self.words)
-            .map(|c| c[..self.words].iter().map(|w| w.count_ones() as usize).sum::<usize>())
+            .map(|c| {
+                c[..self.words]
+                    .iter()
+                    .map(|w| w.count_ones() as usize)
+                    .sum::<usize>()
+            })
             .sum()
     }
 }
@@ -210,15 +220,13 @@ mod tests {
                         for z in 0..22 {
                             let cell = UVec3::new(x, y, z);
                             let corners: Vec<f32> = (0..8)
-                                .map(|n| {
-                                    f(cell + UVec3::new(n >> 2, (n >> 1) & 1, n & 1)) as f32
-                                })
+                                .map(|n| f(cell + UVec3::new(n >> 2, (n >> 1) & 1, n & 1)) as f32)
                                 .collect();
                             let lo = corners.iter().copied().fold(f32::INFINITY, f32::min);
                             let hi = corners.iter().copied().fold(f32::NEG_INFINITY, f32::max);
                             let mc = cell / side;
-                            let index = ((mc.x * cells.count.y + mc.y) * cells.count.z + mc.z)
-                                as usize;
+                            let index =
+                                ((mc.x * cells.count.y + mc.y) * cells.count.z + mc.z) as usize;
                             let want = lo < iso && iso <= hi;
                             straddling += want as usize;
                             match masks.masks(index) {

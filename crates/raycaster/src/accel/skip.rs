@@ -6,8 +6,8 @@
 use glam::{UVec3, Vec3};
 
 use super::{IsoCells, MacrocellGrid};
-use crate::volume::AnyVolume;
 use crate::geometry::Aabb;
+use crate::volume::AnyVolume;
 use crate::volume::cell_coord;
 
 /// The answer of [`SkipGrid::classify`].

@@ -40,9 +40,8 @@ impl CellCubic {
             // v0·((1 − u0) − du·t) + v1·(u0 + du·t)
             (v0 + (v1 - v0) * u0, (v1 - v0) * du)
         };
-        let x: [(f32, f32); 4] = std::array::from_fn(|jk| {
-            lin(corners[jk], corners[4 + jk], p0.x, dir.x)
-        });
+        let x: [(f32, f32); 4] =
+            std::array::from_fn(|jk| lin(corners[jk], corners[4 + jk], p0.x, dir.x));
         // (a0 + a1·t)·(w0 + w1·t) + (b0 + b1·t)·(s0 + s1·t) with
         // w = 1 − u and s = u along y.
         let (wy0, wy1, sy0, sy1) = (1.0 - p0.y, -dir.y, p0.y, dir.y);

@@ -1,0 +1,378 @@
+//! Exact isosurfaces (SPEC §8): hits are the first crossing of the
+//! trilinear interpolant (against an independent f64 root finder, and on
+//! planes, which trilinear interpolation reproduces, against the analytic
+//! answer) for several sample types and whatever the sampling step; thin
+//! features between samples are found; renderers agree with lights and
+//! shadows; a sphere's shadow on a plane falls where geometry says.
+
+mod common;
+
+use common::rays::{RayLab, random_ray};
+use common::scenes::{opts, render, tf_points};
+use glam::{DVec3, UVec3, Vec3};
+use raycaster::geometry::Ray;
+use raycaster::prelude::*;
+
+fn white() -> TransferFunction {
+    tf_points(
+        Interpolation::Linear,
+        &[(-1.0e6, [1.0; 3], 1.0), (1.0e6, [1.0; 3], 1.0)],
+    )
+}
+
+/// The f64 trilinear interpolant of `f` (voxel values) at voxel-space `p`,
+/// clamped onto a grid of `dims`.
+fn trilinear(f: &impl Fn(UVec3) -> f64, dims: UVec3, p: DVec3) -> f64 {
+    let hi = (dims - UVec3::ONE).as_dvec3();
+    let p = p.clamp(DVec3::ZERO, hi);
+    let last = (dims.max(UVec3::splat(2)) - UVec3::splat(2)).as_dvec3();
+    let c = p.floor().min(last);
+    let t = p - c;
+    let c = c.as_uvec3();
+    let mut v = 0.0;
+    for n in 0..8u32 {
+        let o = UVec3::new(n >> 2, (n >> 1) & 1, n & 1);
+        let w = |a: usize| if o[a] == 1 { t[a] } else { 1.0 - t[a] };
+        let q = (c + o).min(dims - UVec3::ONE);
+        v += f(q) * w(0) * w(1) * w(2);
+    }
+    v
+}
+
+/// The first crossing of `iso` (a change of `value ≥ iso`) along `ray`
+/// inside the grid, by f64 stepping of 1/256 voxel and bisection; voxel
+/// space.
+fn reference_hit(f: &impl Fn(UVec3) -> f64, grid: &Grid, ray: &Ray, iso: f64) -> Option<DVec3> {
+    let (t0, t1) = grid.bounds().intersect(ray)?;
+    let o = grid.world_to_voxel(ray.origin).as_dvec3();
+    let d = (ray.dir / grid.spacing).as_dvec3();
+    let at = |t: f64| o + d * t;
+    let g = |t: f64| trilinear(f, grid.dims, at(t)) - iso;
+    let dt = 1.0 / 256.0 / d.abs().max_element();
+    let side = g(t0 as f64) >= 0.0;
+    let mut a = t0 as f64;
+    while a < t1 as f64 {
+        let b = (a + dt).min(t1 as f64);
+        if (g(b) >= 0.0) != side {
+            let (mut lo, mut hi) = (a, b);
+            for _ in 0..60 {
+                let m = 0.5 * (lo + hi);
+                if (g(m) >= 0.0) == side {
+                    lo = m;
+                } else {
+                    hi = m;
+                }
+            }
+            return Some(at(0.5 * (lo + hi)));
+        }
+        a = b;
+    }
+    None
+}
+
+/// Our hit for `ray`, voxel space.
+fn our_hit(lab: &RayLab<'_>, grid: &Grid, ray: &Ray, ess: bool) -> Option<DVec3> {
+    lab.iso_hit(ray, ess)
+        .0
+        .map(|w| grid.world_to_voxel(w).as_dvec3())
+}
+
+/// Compares our hits with the reference's on random rays; returns the
+/// number of hits. `field` gives each voxel's value in f64 (what the
+/// volume stores).
+fn compare_with_reference(
+    scene: &Scene,
+    field: impl Fn(UVec3) -> f64,
+    iso: f32,
+    step: f32,
+    rays: usize,
+    seed: u64,
+) -> usize {
+    let grid = *scene.grid();
+    let tf = white();
+    let lab = RayLab::iso(scene, &tf, step, iso);
+    let mut rng = fastrand::Rng::with_seed(seed);
+    let (lo, hi) = (grid.bounds().min, grid.bounds().max);
+    let mut hits = 0;
+    let mut worst = 0.0f64;
+    for _ in 0..rays {
+        let inside = rng.bool();
+        let ray = random_ray(&mut rng, lo, hi, inside);
+        let want = reference_hit(&field, &grid, &ray, iso as f64);
+        for ess in [true, false] {
+            let got = our_hit(&lab, &grid, &ray, ess);
+            match (want, got) {
+                (Some(w), Some(g)) => {
+                    worst = worst.max((w - g).length());
+                    assert!(
+                        (w - g).length() < 1e-3,
+                        "hit {g} vs reference {w} (ess {ess}, ray {ray:?})"
+                    );
+                    hits += ess as usize;
+                }
+                (None, None) => {}
+                (Some(w), None) => panic!("missed the crossing at {w} (ess {ess}, ray {ray:?})"),
+                (None, Some(g)) => {
+                    // Only a pair of crossings closer than the reference's
+                    // 1/256-voxel steps may hide from it: then the field
+                    // must really change side around our hit.
+                    let dv = (ray.dir / grid.spacing).as_dvec3().normalize() * 2e-3;
+                    let side = |p: DVec3| trilinear(&field, grid.dims, p) >= iso as f64;
+                    assert_ne!(
+                        side(g - dv),
+                        side(g + dv),
+                        "hit at {g} where the reference sees no crossing (ess {ess})"
+                    );
+                }
+            }
+        }
+    }
+    println!("{hits} hits, worst distance to the reference {worst:.2e} voxel");
+    hits
+}
+
+#[test]
+fn hits_on_sphere_and_torus_fields_match_an_f64_root_finder() {
+    let spacing = Vec3::new(1.0, 0.8, 1.25);
+    let grid = Grid::new(UVec3::new(37, 41, 29), spacing);
+    let c = grid.bounds().center();
+    let sphere = |v: UVec3| -> f32 {
+        let p = grid.voxel_to_world(v.as_vec3());
+        (p - c - Vec3::new(1.3, -0.7, 0.4)).length() - 11.0
+    };
+    let torus = |v: UVec3| -> f32 {
+        let p = grid.voxel_to_world(v.as_vec3()) - c;
+        let q = glam::Vec2::new(glam::Vec2::new(p.x, p.z).length() - 10.0, p.y);
+        q.length() - 3.5
+    };
+    for (name, f) in [
+        ("sphere", &sphere as &dyn Fn(UVec3) -> f32),
+        ("torus", &torus),
+    ] {
+        let scene = Scene::new(AnyVolume::from_fn(grid, f));
+        // The step does not matter to an exact search: a large one too.
+        for step in [0.4f32, 3.0] {
+            let hits = compare_with_reference(&scene, |v| f(v) as f64, 0.0, step, 600, 7);
+            assert!(hits > 100, "{name}: only {hits} hits");
+        }
+    }
+}
+
+/// Trilinear interpolation reproduces a linear field, so the hits must lie
+/// on the analytic plane; for integer sample types too.
+#[test]
+fn hits_on_a_linear_field_lie_on_the_plane_for_every_sample_type() {
+    let dims = UVec3::new(30, 28, 26);
+    let grid = Grid::new(dims, Vec3::new(1.0, 1.5, 0.75));
+    let n = DVec3::new(4.0, 2.0, 1.0);
+    let value = |v: UVec3| 4 * v.x + 2 * v.y + v.z; // 0..=199
+    let iso = 100.5f32;
+    let scenes = [
+        (
+            "u8",
+            Scene::new(AnyVolume::from_fn(grid, |v| value(v) as u8)),
+        ),
+        (
+            "i16",
+            Scene::new(AnyVolume::from_fn(grid, |v| value(v) as i16 - 50)),
+        ),
+        (
+            "u16",
+            Scene::new(AnyVolume::from_fn(grid, |v| value(v) as u16 * 3)),
+        ),
+        (
+            "f32",
+            Scene::new(AnyVolume::from_fn(grid, |v| value(v) as f32 * 0.25)),
+        ),
+    ];
+    let isos = [iso, iso - 50.0, iso * 3.0, iso * 0.25];
+    let tf = white();
+    let mut rng = fastrand::Rng::with_seed(3);
+    for ((name, scene), iso) in scenes.iter().zip(isos) {
+        let lab = RayLab::iso(scene, &tf, 2.5, iso);
+        let mut hits = 0;
+        for _ in 0..500 {
+            let ray = random_ray(&mut rng, grid.bounds().min, grid.bounds().max, false);
+            if let Some(p) = our_hit(&lab, &grid, &ray, true) {
+                // Distance (voxels) to the plane n·p = 100.5.
+                let d = (n.dot(p) - 100.5).abs() / n.length();
+                assert!(d < 1e-3, "{name}: hit {p} is {d} voxel off the plane");
+                hits += 1;
+            }
+        }
+        assert!(hits > 100, "{name}: only {hits} hits");
+    }
+}
+
+/// A sheet one voxel thick: value 1 on the plane x = 16, 0 elsewhere; the
+/// iso value 0.5 crosses at x = 15.5 and 16.5. With a step of 4 voxels most
+/// rays take no sample inside the sheet, yet every ray through it hits.
+#[test]
+fn a_thin_sheet_between_samples_is_found() {
+    let grid = Grid::new(UVec3::splat(33), Vec3::ONE);
+    let scene = Scene::new(AnyVolume::from_fn(grid, |v| (v.x == 16) as u8 as f32));
+    let tf = white();
+    let step = 4.0;
+    let lab = RayLab::iso(&scene, &tf, step, 0.5);
+    let mut rng = fastrand::Rng::with_seed(9);
+    let (mut through, mut between) = (0, 0);
+    for _ in 0..800 {
+        let ray = random_ray(&mut rng, grid.bounds().min, grid.bounds().max, false);
+        let Some((t0, t1)) = grid.bounds().intersect(&ray) else {
+            continue;
+        };
+        let (x0, x1) = (ray.at(t0).x, ray.at(t1).x);
+        if x0.min(x1) > 15.4 || x0.max(x1) < 16.6 {
+            continue; // does not cross the whole sheet
+        }
+        through += 1;
+        // Would a stepping search see the sheet? Only if a sample lands in
+        // it (|x − 16| < 0.5).
+        let samples = ((t1 - t0) / step) as u32 + 1;
+        between +=
+            (0..samples).all(|k| (ray.at(t0 + k as f32 * step).x - 16.0).abs() >= 0.5) as usize;
+        let p = our_hit(&lab, &grid, &ray, true).expect("a ray through the sheet hits it");
+        let want = if x0 < 16.0 { 15.5 } else { 16.5 };
+        assert!((p.x - want).abs() < 1e-3, "hit {p}, want x = {want}");
+    }
+    assert!(
+        through > 100 && between > 50,
+        "{through} rays, {between} between samples"
+    );
+}
+
+/// A sphere resting above a plane, as one distance field (their union).
+struct SphereOnPlane {
+    grid: Grid,
+    centre: Vec3,
+    radius: f32,
+    floor: f32,
+}
+
+impl SphereOnPlane {
+    fn new() -> Self {
+        SphereOnPlane {
+            grid: Grid::new(UVec3::new(49, 33, 49), Vec3::ONE),
+            centre: Vec3::new(24.0, 20.0, 24.0),
+            radius: 6.0,
+            floor: 6.0,
+        }
+    }
+
+    fn value(&self, p: Vec3) -> f32 {
+        ((p - self.centre).length() - self.radius).min(p.y - self.floor)
+    }
+
+    fn scene(&self) -> Scene {
+        Scene::new(AnyVolume::from_fn(self.grid, |v| {
+            self.value(self.grid.voxel_to_world(v.as_vec3()))
+        }))
+    }
+}
+
+fn lit_options(lights: Vec<Vec3>, shadows: bool) -> RenderOptions {
+    RenderOptions {
+        iso_value: 0.0,
+        shading: true,
+        ess: true,
+        lights,
+        shadows,
+        ..opts(RenderMode::Iso, 0.5)
+    }
+}
+
+#[test]
+fn renderers_agree_with_lights_and_shadows() {
+    let s = SphereOnPlane::new();
+    let scene = s.scene();
+    let tf = white();
+    let mut cam = Camera::look_at(Vec3::new(70.0, 55.0, 80.0), s.centre, 96, 80);
+    cam.fov_y_deg = 40.0;
+    let o = lit_options(
+        vec![Vec3::new(0.3, 1.0, 0.2), Vec3::new(-1.0, 0.5, 0.0)],
+        true,
+    );
+    let serial = render(&scene, &cam, &tf, &o);
+    for mut r in [
+        Box::new(TiledRenderer::new(2, 16).expect("tiles")) as AnyRenderer,
+        RendererKind::Object.renderer(2).expect("object"),
+    ] {
+        let f = r.render(&scene, &cam, &tf, &o).expect("render");
+        let d = common::compare_images(&serial.rgb, &f.rgb, 0);
+        assert_eq!(d.over, 0, "{} differs from serial: {d}", r.name());
+    }
+    // Without skipping the walk takes every cell: the same hits.
+    let no_ess = render(&scene, &cam, &tf, &RenderOptions { ess: false, ..o });
+    let d = common::compare_images(&serial.rgb, &no_ess.rgb, 1);
+    assert_eq!(d.over, 0, "ESS changes the image: {d}");
+}
+
+/// Light straight from above: a point of the floor is in shadow exactly
+/// when it lies under the sphere (within its radius of the centre's
+/// vertical), away from a band of half a voxel around the rim.
+#[test]
+fn a_spheres_shadow_falls_under_it() {
+    let s = SphereOnPlane::new();
+    let scene = s.scene();
+    let tf = white();
+    let mut cam = Camera::look_at(
+        Vec3::new(24.0, 60.0, 75.0),
+        Vec3::new(24.0, 6.0, 24.0),
+        120,
+        100,
+    );
+    cam.fov_y_deg = 45.0;
+    let frame_cam = cam.frame().expect("camera");
+    let up = Vec3::Y;
+    let with = render(&scene, &cam, &tf, &lit_options(vec![up], true));
+    let without = render(&scene, &cam, &tf, &lit_options(vec![up], false));
+    let (mut shadowed, mut lit) = (0, 0);
+    for j in 0..cam.height {
+        for i in 0..cam.width {
+            let ray = frame_cam.ray(i, j);
+            // Analytic first hit: the sphere, else the floor (inside the box).
+            let oc = ray.origin - s.centre;
+            let b = oc.dot(ray.dir);
+            let disc = b * b - (oc.length_squared() - s.radius * s.radius);
+            if disc > -1.0 {
+                continue; // on or near the sphere
+            }
+            let t = (s.floor - ray.origin.y) / ray.dir.y;
+            let q = ray.at(t);
+            let inside_box = q.x > 1.0 && q.x < 47.0 && q.z > 1.0 && q.z < 47.0;
+            if !(t > 0.0 && inside_box) {
+                continue;
+            }
+            let r = glam::Vec2::new(q.x - s.centre.x, q.z - s.centre.z).length();
+            let at = ((j * cam.width + i) * 3) as usize;
+            let (a, b) = (with.rgb[at], without.rgb[at]);
+            if r < s.radius - 0.5 {
+                // Ambient only (0.3 of white), against fully lit.
+                assert!(
+                    a < 90 && b > 200,
+                    "pixel {i},{j} at r = {r}: {a} with, {b} without"
+                );
+                shadowed += 1;
+            } else if r > s.radius + 0.5 {
+                assert_eq!(a, b, "pixel {i},{j} at r = {r} is shadowed");
+                lit += 1;
+            }
+        }
+    }
+    assert!(
+        shadowed > 50 && lit > 1000,
+        "{shadowed} shadowed, {lit} lit pixels"
+    );
+}
+
+#[test]
+fn bad_lights_are_errors() {
+    let s = SphereOnPlane::new();
+    let scene = s.scene();
+    let cam = Camera::look_at(Vec3::new(70.0, 55.0, 80.0), s.centre, 16, 16);
+    let o = lit_options(vec![Vec3::ZERO], true);
+    let err = SerialRenderer::new()
+        .render(&scene, &cam, &white(), &o)
+        .expect_err("a zero light direction must be refused");
+    assert!(err.to_string().contains("light"), "{err}");
+}
