@@ -169,6 +169,8 @@ pub fn run(args: &RenderArgs) -> Result<(), Error> {
             frame_ms: times,
             load_ms,
             rays: last.stats.rays,
+            rays_in_volume: last.stats.rays_in_volume,
+            covered: last.stats.covered,
             samples: last.stats.samples,
             peak_rss_mb: peak_rss_mb(),
         };

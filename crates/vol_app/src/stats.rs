@@ -13,6 +13,10 @@ pub struct RenderStats {
     pub frame_ms: Vec<f64>,
     pub load_ms: f64,
     pub rays: u64,
+    /// Rays that met the volume's box.
+    pub rays_in_volume: u64,
+    /// Rays that ended with some opacity (iso: hit the surface).
+    pub covered: u64,
     pub samples: u64,
     pub peak_rss_mb: f64,
 }

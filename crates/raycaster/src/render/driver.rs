@@ -9,7 +9,7 @@
 
 use std::time::Instant;
 
-use super::film::Film;
+use super::film::{Film, RayCounts};
 use super::plan::{FramePlan, PlanCache, RenderOptions};
 use super::{Cancel, Frame, FrameStats, Renderer};
 use crate::camera::{Camera, PixelRect};
@@ -198,12 +198,15 @@ fn render_frame<S: Schedule>(
     if cancel.is_cancelled() {
         return Ok(None);
     }
+    let counts = film.counts();
     Ok(Some(Frame {
         width: plan.width,
         height: plan.height,
         rgb: film.into_rgb(),
         stats: FrameStats {
             rays: plan.rect.area(),
+            rays_in_volume: counts.entered,
+            covered: counts.covered,
             samples,
             time: start.elapsed(),
         },
@@ -220,6 +223,7 @@ pub(crate) fn render_tile<V: Volume, I: Integrator>(
 ) -> (Vec<u8>, u64) {
     let mut rgb = Vec::with_capacity(3 * rect.area() as usize);
     let mut samples = 0;
+    let mut counts = RayCounts::default();
     for j in rect.y0..rect.y1 {
         for i in rect.x0..rect.x1 {
             let px = match job.segment(i, j) {
@@ -227,11 +231,14 @@ pub(crate) fn render_tile<V: Volume, I: Integrator>(
                 Some(seg) => {
                     let mut ray = I::default();
                     samples += ray.integrate(Span::whole(&job.ctx, &seg));
-                    film.composite(ray.resolve(&job.ctx))
+                    let c = ray.resolve(&job.ctx);
+                    counts.add(c);
+                    film.composite(c)
                 }
             };
             rgb.extend_from_slice(&px);
         }
     }
+    film.add_counts(counts);
     (rgb, samples)
 }

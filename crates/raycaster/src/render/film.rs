@@ -1,5 +1,7 @@
 //! [`Film`]: the image a frame is assembled on, over its background.
 
+use std::sync::atomic::{AtomicU64, Ordering};
+
 use glam::{Vec3, Vec4};
 
 use crate::camera::PixelRect;
@@ -12,6 +14,28 @@ pub struct Film {
     background: Vec3,
     background_rgb: [u8; 3],
     rgb: Vec<u8>,
+    /// Rays that met the volume, and of those the ones that ended with
+    /// some opacity, added tile by tile.
+    counts: [AtomicU64; 2],
+}
+
+/// Per-tile counts of rays that met the volume and that ended with some
+/// opacity (for iso, hit the surface), for [`Film::add_counts`].
+#[derive(Debug, Clone, Copy, Default)]
+pub struct RayCounts {
+    /// Rays that met the volume's box.
+    pub entered: u64,
+    /// Of those, rays that ended with opacity > 0.
+    pub covered: u64,
+}
+
+impl RayCounts {
+    /// Counts one ray that met the volume and ended with colour `c`.
+    #[inline(always)]
+    pub fn add(&mut self, c: Vec4) {
+        self.entered += 1;
+        self.covered += (c.w > 0.0) as u64;
+    }
 }
 
 impl Film {
@@ -23,6 +47,21 @@ impl Film {
             background,
             background_rgb,
             rgb: background_rgb.repeat(width as usize * height as usize),
+            counts: Default::default(),
+        }
+    }
+
+    /// Adds a tile's ray counts (once per tile: no contention per pixel).
+    pub fn add_counts(&self, c: RayCounts) {
+        self.counts[0].fetch_add(c.entered, Ordering::Relaxed);
+        self.counts[1].fetch_add(c.covered, Ordering::Relaxed);
+    }
+
+    /// The counts added so far.
+    pub fn counts(&self) -> RayCounts {
+        RayCounts {
+            entered: self.counts[0].load(Ordering::Relaxed),
+            covered: self.counts[1].load(Ordering::Relaxed),
         }
     }
 

@@ -10,6 +10,10 @@ use crate::error::{Error, Result};
 pub struct FrameStats {
     /// Rays cast (pixels inside the volume's screen rectangle).
     pub rays: u64,
+    /// Rays that met the volume's box.
+    pub rays_in_volume: u64,
+    /// Rays that ended with some opacity (in iso mode: hit the surface).
+    pub covered: u64,
     /// Samples taken along rays (interpolations at `t_k`; gradient and iso
     /// refinement lookups are not counted).
     pub samples: u64,

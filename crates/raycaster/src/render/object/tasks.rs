@@ -14,7 +14,7 @@ use super::footprint::intersect;
 use super::work::FrameWork;
 use crate::integrator::{Integrator, RaySegment, Span};
 use crate::render::driver::FrameJob;
-use crate::render::film::Film;
+use crate::render::film::{Film, RayCounts};
 use crate::volume::Volume;
 
 /// The rays of one tile, travelling with its tasks.
@@ -158,13 +158,17 @@ impl<V: Volume, I: Integrator> Shared<'_, V, I> {
             return bg.repeat(area);
         }
         let mut rgb = Vec::with_capacity(3 * area);
+        let mut counts = RayCounts::default();
         for (seg, state) in buf.segs.iter().zip(&buf.states) {
             if seg.is_some() {
-                rgb.extend_from_slice(&self.film.composite(state.resolve(&self.job.ctx)));
+                let c = state.resolve(&self.job.ctx);
+                counts.add(c);
+                rgb.extend_from_slice(&self.film.composite(c));
             } else {
                 rgb.extend_from_slice(&bg);
             }
         }
+        self.film.add_counts(counts);
         rgb
     }
 
