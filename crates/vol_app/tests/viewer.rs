@@ -909,6 +909,12 @@ fn settings_persist_through_eframe_storage() {
     h.step();
     h.get_by_label("Progressive refinement").click();
     h.step();
+    let light = LightAngles {
+        azimuth: -120.0,
+        elevation: 30.0,
+    };
+    app_mut(&mut h).settings_mut().lights = vec![light];
+    app_mut(&mut h).settings_mut().shadows = true;
     let mut storage = MemStorage::default();
     eframe::App::save(app_mut(&mut h), &mut storage);
     let restored = Settings::load(Some(&storage));
@@ -916,6 +922,8 @@ fn settings_persist_through_eframe_storage() {
     assert_eq!(restored.mode, RenderMode::Mip);
     assert!(!restored.ess);
     assert!(!restored.progressive);
+    assert!(restored.shadows);
+    assert_eq!(restored.lights, vec![light]);
     assert_eq!(restored.last_dir.as_deref(), path.parent());
     assert_eq!(Settings::load(None), Settings::default());
 }
