@@ -19,7 +19,7 @@ use raycaster::render::RendererKind;
 use raycaster::sample::SampleType;
 use raycaster::transfer::TransferFunction;
 use vol_app::viewer::progressive::{Level, REFINEMENT};
-use vol_app::viewer::state::ResolutionChoice;
+use vol_app::viewer::state::{LightAngles, ResolutionChoice};
 use vol_app::viewer::{Settings, StartOptions, ViewerApp};
 
 const TIMEOUT: Duration = Duration::from_secs(25);
@@ -390,6 +390,68 @@ fn switching_tf_preset_and_mode_renders_new_frames() {
         app(&h).last_request().unwrap().options.mode,
         RenderMode::Iso
     );
+}
+
+#[test]
+fn iso_shadows_and_lights_reach_the_renderer() {
+    let dir = TempDir::new("lights");
+    let (mut h, _) = open_file(&dir);
+    let opts = |h: &H| app(h).last_request().unwrap().options.clone();
+    // The light controls belong to iso mode.
+    assert_eq!(h.query_all_by_label("Shadows").count(), 0);
+    h.get_by_label("Iso").click();
+    h.step();
+    settle(&mut h);
+    assert_eq!(opts(&h).mode, RenderMode::Iso);
+    assert!(opts(&h).lights.is_empty() && !opts(&h).shadows);
+    h.get_by_label("Headlight");
+    let headlit = app(&h).last_frame().unwrap().frame.rgb.clone();
+
+    h.get_by_label("Shadows").click();
+    h.get_by_label("Add light").click();
+    h.step();
+    settle(&mut h);
+    assert!(app(&h).settings().shadows);
+    assert_eq!(app(&h).settings().lights, vec![LightAngles::default()]);
+    assert!(opts(&h).shadows);
+    assert_eq!(opts(&h).lights, vec![LightAngles::default().direction()]);
+    assert!(frame_is_current(app(&h)));
+    assert_ne!(
+        app(&h).last_frame().unwrap().frame.rgb,
+        headlit,
+        "the light changed nothing"
+    );
+    assert_eq!(h.query_all_by_label("Headlight").count(), 0);
+
+    // Azimuth 90°, elevation 0°: the light is on the +x side.
+    let slider = |h: &H, label: &str, value: f64| {
+        h.get_by_role_and_label(egui::accesskit::Role::Slider, label)
+            .set_value_accesskit(value);
+    };
+    slider(&h, "Light 1 azimuth °", 90.0);
+    slider(&h, "Light 1 elevation °", 0.0);
+    h.step();
+    settle(&mut h);
+    let l = opts(&h).lights;
+    assert_eq!(l.len(), 1);
+    assert!((l[0] - Vec3::X).length() < 1e-6, "{l:?}");
+    assert!(frame_is_current(app(&h)));
+
+    // Up to four lights; removing them all is the headlight again.
+    for _ in 0..5 {
+        h.get_by_label("Add light").click();
+        h.step();
+    }
+    assert_eq!(app(&h).settings().lights.len(), 4);
+    settle(&mut h);
+    assert_eq!(opts(&h).lights.len(), 4);
+    while !app(&h).settings().lights.is_empty() {
+        h.get_all_by_label("Remove").next().unwrap().click();
+        h.step();
+    }
+    settle(&mut h);
+    assert!(opts(&h).lights.is_empty() && opts(&h).shadows);
+    h.get_by_label("Headlight");
 }
 
 #[test]
@@ -847,6 +909,12 @@ fn settings_persist_through_eframe_storage() {
     h.step();
     h.get_by_label("Progressive refinement").click();
     h.step();
+    let light = LightAngles {
+        azimuth: -120.0,
+        elevation: 30.0,
+    };
+    app_mut(&mut h).settings_mut().lights = vec![light];
+    app_mut(&mut h).settings_mut().shadows = true;
     let mut storage = MemStorage::default();
     eframe::App::save(app_mut(&mut h), &mut storage);
     let restored = Settings::load(Some(&storage));
@@ -854,6 +922,8 @@ fn settings_persist_through_eframe_storage() {
     assert_eq!(restored.mode, RenderMode::Mip);
     assert!(!restored.ess);
     assert!(!restored.progressive);
+    assert!(restored.shadows);
+    assert_eq!(restored.lights, vec![light]);
     assert_eq!(restored.last_dir.as_deref(), path.parent());
     assert_eq!(Settings::load(None), Settings::default());
 }

@@ -161,6 +161,8 @@ impl ViewerApp {
                 ess: s.ess,
                 shading: s.shading,
                 iso_value: s.iso_value,
+                lights: s.light_directions(),
+                shadows: s.shadows,
                 ..RenderOptions::default()
             },
             renderer: s.renderer,

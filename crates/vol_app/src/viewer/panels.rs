@@ -11,7 +11,10 @@ use raycaster::units::{bytes, significant, value as format_value};
 use super::app::ViewerApp;
 use super::dialogs::Purpose;
 use super::loading::{Source, VolumeInfo};
-use super::state::{MODES, ResolutionChoice, STEP_FACTOR_RANGE, max_threads, mode_label};
+use super::state::{
+    LightAngles, MAX_LIGHTS, MODES, ResolutionChoice, STEP_FACTOR_RANGE, Settings, max_threads,
+    mode_label,
+};
 
 impl ViewerApp {
     /// All sections of the left panel.
@@ -149,6 +152,7 @@ impl ViewerApp {
                 .map_or((0.0, 255.0), |v| v.info.value_range);
             let iso = egui::Slider::new(&mut s.iso_value, lo..=hi.max(lo + 1e-3)).text("Iso value");
             self.controls_moving |= ui.add(iso).dragged();
+            self.controls_moving |= lights_editor(ui, s);
         }
         ui.checkbox(&mut s.shading, "Shading (Phong)");
         ui.horizontal(|ui| {
@@ -229,6 +233,47 @@ impl ViewerApp {
         });
         ui.weak("Left drag: orbit · right drag: pan · wheel: zoom · double-click: reset");
     }
+}
+
+/// Iso mode's shadows and directional lights (none: the headlight). Returns
+/// true while a light's slider is dragged.
+fn lights_editor(ui: &mut Ui, s: &mut Settings) -> bool {
+    ui.checkbox(&mut s.shadows, "Shadows")
+        .on_hover_text("Cast a shadow ray towards each light from every surface hit");
+    ui.horizontal(|ui| {
+        ui.label("Lights:");
+        if s.lights.is_empty() {
+            ui.weak("Headlight")
+                .on_hover_text("No lights added: lit from the camera");
+        }
+        let add = ui.add_enabled(s.lights.len() < MAX_LIGHTS, egui::Button::new("Add light"));
+        if add
+            .on_hover_text(format!("Up to {MAX_LIGHTS} directional lights"))
+            .clicked()
+        {
+            s.lights.push(LightAngles::default());
+        }
+    });
+    let (mut remove, mut moving) = (None, false);
+    for (i, l) in s.lights.iter_mut().enumerate() {
+        let n = i + 1;
+        ui.horizontal(|ui| {
+            ui.label(format!("Light {n}"));
+            if ui.small_button("Remove").clicked() {
+                remove = Some(i);
+            }
+        });
+        let az =
+            egui::Slider::new(&mut l.azimuth, -180.0..=180.0).text(format!("Light {n} azimuth °"));
+        let el = egui::Slider::new(&mut l.elevation, -90.0..=90.0)
+            .text(format!("Light {n} elevation °"));
+        let (az, el) = (ui.add(az), ui.add(el));
+        moving |= az.dragged() || el.dragged();
+    }
+    if let Some(i) = remove {
+        s.lights.remove(i);
+    }
+    moving
 }
 
 /// A collapsible section, open by default.

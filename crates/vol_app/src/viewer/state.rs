@@ -7,6 +7,7 @@
 
 use std::path::PathBuf;
 
+use glam::Vec3;
 use raycaster::integrator::RenderMode;
 use raycaster::render::RendererKind;
 use raycaster::transfer::TransferFunction;
@@ -40,6 +41,62 @@ pub fn mode_label(mode: RenderMode) -> &'static str {
     }
 }
 
+/// The most directional lights the panel offers.
+pub const MAX_LIGHTS: usize = 4;
+
+/// A directional light of [`RenderMode::Iso`], as two angles in degrees.
+///
+/// The convention is the orbit camera's (see
+/// [`camera_control`](super::camera_control)): the direction towards the
+/// light is `(cos el·sin az, sin el, cos el·cos az)`, i.e. the elevation is
+/// the angle from the xz-plane towards +y, and the azimuth turns about +y
+/// from +z towards +x. So azimuth 0, elevation 0 is the +z side (where
+/// `vol_app render`'s default camera looks from), azimuth 90 is +x,
+/// elevation 90 is straight above (+y), and a light at the camera's own
+/// angles shines from where the camera stands.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+#[serde(default)]
+pub struct LightAngles {
+    /// Azimuth in degrees, −180..180.
+    pub azimuth: f32,
+    /// Elevation in degrees, −90..90.
+    pub elevation: f32,
+}
+
+impl Default for LightAngles {
+    /// A new light: above, to the right of the camera's home view.
+    fn default() -> Self {
+        LightAngles {
+            azimuth: 60.0,
+            elevation: 45.0,
+        }
+    }
+}
+
+impl LightAngles {
+    /// The unit world direction towards the light (see the type's docs).
+    pub fn direction(self) -> Vec3 {
+        let (az, el) = (self.azimuth.to_radians(), self.elevation.to_radians());
+        Vec3::new(el.cos() * az.sin(), el.sin(), el.cos() * az.cos())
+    }
+
+    /// Finite angles within the sliders' ranges.
+    fn repaired(self) -> Self {
+        let fix = |v: f32, max: f32, default: f32| {
+            if v.is_finite() {
+                v.clamp(-max, max)
+            } else {
+                default
+            }
+        };
+        let d = LightAngles::default();
+        LightAngles {
+            azimuth: fix(self.azimuth, 180.0, d.azimuth),
+            elevation: fix(self.elevation, 90.0, d.elevation),
+        }
+    }
+}
+
 /// The size of the rendered image.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize, Default)]
 #[serde(rename_all = "lowercase")]
@@ -65,6 +122,10 @@ pub struct Settings {
     pub mode: RenderMode,
     /// Iso value (data units) for [`RenderMode::Iso`].
     pub iso_value: f32,
+    /// Directional lights of [`RenderMode::Iso`]; empty: one headlight.
+    pub lights: Vec<LightAngles>,
+    /// Shadow rays towards each light in [`RenderMode::Iso`].
+    pub shadows: bool,
     /// Phong shading.
     pub shading: bool,
     /// Renderer.
@@ -99,6 +160,8 @@ impl Default for Settings {
             tf_preset: Some(crate::demo::DEMO_TF.to_string()),
             mode: RenderMode::Dvr,
             iso_value: 100.0,
+            lights: Vec::new(),
+            shadows: false,
             shading: true,
             // The viewer's default so far; the library's (and `vol_app
             // render`'s) is the object renderer.
@@ -140,6 +203,13 @@ impl Settings {
         self.step_factor * grid.spacing.min_element()
     }
 
+    /// The world directions of [`Settings::lights`], as
+    /// [`RenderOptions::lights`](raycaster::render::RenderOptions::lights)
+    /// wants them (empty: the headlight).
+    pub fn light_directions(&self) -> Vec<Vec3> {
+        self.lights.iter().map(|l| l.direction()).collect()
+    }
+
     /// The settings stored by the last run, or the defaults; values that no
     /// longer make sense (an invalid TF, more threads than cores) are repaired.
     pub fn load(storage: Option<&dyn eframe::Storage>) -> Self {
@@ -162,6 +232,10 @@ impl Settings {
         if !self.iso_value.is_finite() {
             self.iso_value = defaults.iso_value;
         }
+        self.lights.truncate(MAX_LIGHTS);
+        for l in &mut self.lights {
+            *l = l.repaired();
+        }
         self.fixed_size = self.fixed_size.clamp(64, 4096);
         self.step_factor = if self.step_factor.is_finite() {
             self.step_factor
@@ -179,7 +253,7 @@ impl Settings {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use glam::{UVec3, Vec3};
+    use glam::UVec3;
 
     #[test]
     fn settings_round_trip_through_json() {
@@ -249,5 +323,64 @@ mod tests {
         assert!(!back.ert);
         assert_eq!(back.step_factor, DEFAULT_STEP_FACTOR);
         assert!(back.progressive);
+    }
+
+    #[test]
+    fn light_angles_turn_into_directions_like_the_orbit_camera() {
+        let dir = |azimuth, elevation| LightAngles { azimuth, elevation }.direction();
+        let close = |a: Vec3, b: Vec3| (a - b).length() < 1e-6;
+        assert!(close(dir(0.0, 90.0), Vec3::Y));
+        assert!(close(dir(123.0, -90.0), -Vec3::Y));
+        assert!(close(dir(0.0, 0.0), Vec3::Z));
+        assert!(close(dir(90.0, 0.0), Vec3::X));
+        assert!(close(dir(-90.0, 0.0), -Vec3::X));
+        assert!(close(dir(180.0, 0.0), -Vec3::Z));
+        let h = 0.5f32.sqrt();
+        assert!(close(dir(90.0, 45.0), Vec3::new(h, h, 0.0)));
+        for (az, el) in [(37.0, 12.0), (-150.0, -60.0)] {
+            assert!((dir(az, el).length() - 1.0).abs() < 1e-6);
+        }
+        // A light at the camera's angles shines from where the camera is.
+        let mut cam = super::super::camera_control::OrbitCamera::framing(
+            &Grid::new(UVec3::splat(8), Vec3::ONE).bounds(),
+            1.0,
+        );
+        cam.set_angles(-70.0, 30.0);
+        let c = cam.camera(64, 64);
+        let towards_camera = (c.position - c.target).normalize();
+        assert!(close(dir(-70.0, 30.0), towards_camera));
+    }
+
+    #[test]
+    fn lights_and_shadows_default_to_a_headlight_and_are_repaired() {
+        // Settings saved before lights existed load with the headlight.
+        let old: Settings = serde_json::from_str(r#"{"mode": "iso", "iso_value": 50}"#).unwrap();
+        assert!(old.lights.is_empty() && !old.shadows);
+        assert!(old.light_directions().is_empty());
+        let s = Settings {
+            lights: vec![
+                LightAngles::default(),
+                LightAngles {
+                    azimuth: -30.0,
+                    elevation: 10.0,
+                },
+            ],
+            shadows: true,
+            ..Settings::default()
+        };
+        let back: Settings = serde_json::from_str(&serde_json::to_string(&s).unwrap()).unwrap();
+        assert_eq!(back, s);
+        let bad = LightAngles {
+            azimuth: f32::NAN,
+            elevation: 400.0,
+        };
+        let r = Settings {
+            lights: vec![bad; MAX_LIGHTS + 2],
+            ..s
+        }
+        .repaired();
+        assert_eq!(r.lights.len(), MAX_LIGHTS);
+        assert_eq!(r.lights[0].azimuth, LightAngles::default().azimuth);
+        assert_eq!(r.lights[0].elevation, 90.0);
     }
 }
