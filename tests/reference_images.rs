@@ -19,6 +19,10 @@
 //! grazing the box may get one sample more or less at `t_out`. Such pixels are
 //! isolated, so the checks are: PSNR >= 45 dB over the image and at most 0.5%
 //! of the pixels (and never more than 4) differing by more than 3 levels.
+//! Iso scenes (exact crossings, SPEC §8) are two-coloured: a ray grazing the
+//! surface within rounding hits in one precision and misses in the other,
+//! so instead of PSNR each differing pixel must lie on the reference's
+//! silhouette.
 //!
 //! Observed (450 scenes, 2.9k-4k pixels each): 399 scenes are identical or
 //! within 1 level everywhere (all MIP, avg and iso scenes, all bricked
@@ -81,6 +85,9 @@ fn lib_options(c: &Case) -> RenderOptions {
         shading: false,
         phong: None,
         iso_value: iso,
+        lights: Vec::new(),
+        shadows: false,
+        iso_normals: Default::default(),
         background: common::v3f(c.opts.background),
     }
 }
@@ -121,7 +128,16 @@ fn run(c: &Case) -> Outcome {
     let reference = r::render(&c.pair.reference, &c.camera, &c.tf, &c.opts);
     let diff = compare_images(&serial.rgb, &reference, LEVELS);
     let allowed = ((diff.pixels as f64 * MAX_SHARE_OVER) as usize).max(MIN_ALLOWED_OVER);
-    let ok = diff.psnr >= MIN_PSNR && diff.over <= allowed;
+    let ok = if let RefMode::Iso(_) = c.opts.mode {
+        // Exact iso images are two-coloured (unshaded): a ray grazing the
+        // surface within f32 rounding of a tangent hits in one precision
+        // and not in the other, a whole pixel apart, which PSNR cannot
+        // absorb. So: as many differing pixels as elsewhere, each on the
+        // reference's silhouette (a neighbour there has our colour).
+        diff.over <= allowed && silhouette_only(&serial.rgb, &reference, c.camera.width)
+    } else {
+        diff.psnr >= MIN_PSNR && diff.over <= allowed
+    };
     let bg = common::to_rgb8(c.opts.background);
     let lit = serial.rgb.chunks_exact(3).filter(|p| *p != bg).count();
     let mut colours: Vec<&[u8]> = serial.rgb.chunks_exact(3).collect();
@@ -134,6 +150,31 @@ fn run(c: &Case) -> Outcome {
         colours: colours.len(),
         ok,
     }
+}
+
+/// Whether every pixel where `ours` differs from `reference` (by more than
+/// [`LEVELS`]) has a 4-neighbour in `reference` with our colour.
+fn silhouette_only(ours: &[u8], reference: &[u8], width: u32) -> bool {
+    let w = width as usize;
+    let h = ours.len() / 3 / w;
+    let px = |img: &[u8], x: usize, y: usize| {
+        let i = 3 * (y * w + x);
+        [img[i], img[i + 1], img[i + 2]]
+    };
+    let close = |a: [u8; 3], b: [u8; 3]| (0..3).all(|c| a[c].abs_diff(b[c]) <= LEVELS);
+    (0..h).all(|y| {
+        (0..w).all(|x| {
+            let mine = px(ours, x, y);
+            if close(mine, px(reference, x, y)) {
+                return true;
+            }
+            let neighbours = [(0, 1), (2, 1), (1, 0), (1, 2)];
+            neighbours.iter().any(|&(dx, dy)| {
+                let (nx, ny) = ((x + dx).wrapping_sub(1), (y + dy).wrapping_sub(1));
+                nx < w && ny < h && close(mine, px(reference, nx, ny))
+            })
+        })
+    })
 }
 
 /// Prints every outcome, then fails if any scene is out of tolerance.

@@ -11,6 +11,7 @@ use common::rays::{RayLab, random_ray};
 use common::scenes::{opts, render, tf_points};
 use glam::{DVec3, UVec3, Vec3};
 use raycaster::geometry::Ray;
+use raycaster::integrator::IsoNormals;
 use raycaster::prelude::*;
 
 fn white() -> TransferFunction {
@@ -375,4 +376,29 @@ fn bad_lights_are_errors() {
         .render(&scene, &cam, &white(), &o)
         .expect_err("a zero light direction must be refused");
     assert!(err.to_string().contains("light"), "{err}");
+}
+
+/// On a linear field both normals are the plane's: the two settings give
+/// the same picture up to rounding, and a curved field tells them apart.
+#[test]
+fn analytic_normals_agree_on_a_plane_and_differ_on_a_sphere() {
+    let grid = Grid::new(UVec3::splat(24), Vec3::ONE);
+    let cam = Camera::look_at(Vec3::new(40.0, 30.0, 50.0), Vec3::splat(11.5), 48, 48);
+    let tf = white();
+    let o = |normals| RenderOptions {
+        iso_normals: normals,
+        ..lit_options(vec![Vec3::new(0.2, 1.0, 0.5)], false)
+    };
+    let plane = Scene::new(AnyVolume::from_fn(grid, |v| {
+        v.x as f32 * 0.5 + v.y as f32 - 15.0
+    }));
+    let a = render(&plane, &cam, &tf, &o(IsoNormals::Gradient));
+    let b = render(&plane, &cam, &tf, &o(IsoNormals::Analytic));
+    assert_eq!(common::compare_images(&a.rgb, &b.rgb, 1).over, 0);
+    let sphere = Scene::new(AnyVolume::from_fn(grid, |v| {
+        (v.as_vec3() - Vec3::splat(11.5)).length() - 8.0
+    }));
+    let a = render(&sphere, &cam, &tf, &o(IsoNormals::Gradient));
+    let b = render(&sphere, &cam, &tf, &o(IsoNormals::Analytic));
+    assert!(common::compare_images(&a.rgb, &b.rgb, 1).over > 0);
 }

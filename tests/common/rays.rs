@@ -87,6 +87,7 @@ impl<'a> RayLab<'a> {
                     iso_value: lab.iso,
                     lights: &[],
                     shadows: false,
+                    iso_normals: Default::default(),
                     avg_norm: 255.0,
                 };
                 self.job.run(&ctx, &self.seg)

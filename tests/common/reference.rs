@@ -408,9 +408,39 @@ pub fn integrate(vol: &RefVolume, tf: &RefTf, opt: &RefOptions, o: V3, d: V3) ->
     out.in_box = true;
     let s = opt.step;
     let value = |t: f64| vol.value_at(add(o, scale(d, t)));
+    if let RefMode::Iso(iso) = opt.mode {
+        // SPEC §8: the first crossing of the interpolant itself, whatever
+        // the step: found here by steps of 1/32 of the smallest spacing
+        // and bisection.
+        let fine = vol.spacing.iter().copied().fold(f64::INFINITY, f64::min) / 32.0;
+        let side = value(t_in) >= iso;
+        let mut a = t_in;
+        while a < t_out {
+            let b = (a + fine).min(t_out);
+            if (value(b) >= iso) != side {
+                let (mut ta, mut tb) = (a, b);
+                for _ in 0..60 {
+                    let tm = 0.5 * (ta + tb);
+                    if (value(tm) >= iso) == side {
+                        ta = tm;
+                    } else {
+                        tb = tm;
+                    }
+                }
+                let th = 0.5 * (ta + tb);
+                out.hit = Some((th, add(o, scale(d, th))));
+                let e = tf.eval(iso);
+                out.color = [e[0], e[1], e[2]];
+                out.alpha = 1.0;
+                break;
+            }
+            a = b;
+        }
+        out.samples = ((t_out - t_in) / s).floor() as u64 + 1;
+        return out;
+    }
     let mut max = f64::NEG_INFINITY;
     let mut sum = 0.0;
-    let mut prev: Option<(f64, f64)> = None;
     let mut k = 0u64;
     loop {
         let t = t_in + k as f64 * s;
@@ -437,29 +467,7 @@ pub fn integrate(vol: &RefVolume, tf: &RefTf, opt: &RefOptions, o: V3, d: V3) ->
             }
             RefMode::Mip => max = max.max(v),
             RefMode::Avg => sum += v,
-            RefMode::Iso(iso) => {
-                if let Some((tp, vp)) = prev
-                    && (vp >= iso) != (v >= iso)
-                {
-                    let (mut ta, mut tb) = (tp, t);
-                    let side_a = vp >= iso;
-                    while tb - ta > s / 100.0 {
-                        let tm = 0.5 * (ta + tb);
-                        if (value(tm) >= iso) == side_a {
-                            ta = tm;
-                        } else {
-                            tb = tm;
-                        }
-                    }
-                    let th = 0.5 * (ta + tb);
-                    out.hit = Some((th, add(o, scale(d, th))));
-                    let e = tf.eval(iso);
-                    out.color = [e[0], e[1], e[2]];
-                    out.alpha = 1.0;
-                    break;
-                }
-                prev = Some((t, v));
-            }
+            RefMode::Iso(_) => unreachable!("iso returns above"),
         }
     }
     match opt.mode {

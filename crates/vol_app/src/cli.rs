@@ -5,6 +5,7 @@ use std::process::ExitCode;
 
 use clap::{Args, Parser, Subcommand};
 use glam::Vec3;
+use raycaster::integrator::IsoNormals;
 use raycaster::prelude::{RenderMode, RendererKind, TaskOrder};
 
 /// Volume viewer and headless renderer for CPU ray casting.
@@ -267,6 +268,9 @@ pub struct RenderArgs {
     /// --mode iso: cast a shadow ray towards each light from every hit.
     #[arg(long, value_enum, default_value_t = Switch::Off)]
     pub shadows: Switch,
+    /// --mode iso: how the surface normal is found.
+    #[arg(long, value_enum, default_value_t = IsoNormals::Gradient)]
+    pub normals: IsoNormals,
     /// Early ray termination.
     #[arg(long, value_enum, default_value_t = Switch::On)]
     pub ert: Switch,

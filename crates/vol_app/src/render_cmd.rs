@@ -84,6 +84,7 @@ pub fn run(args: &RenderArgs) -> Result<(), Error> {
         iso_value: args.iso.unwrap_or(0.5 * (lo + hi)),
         lights: args.lights.clone(),
         shadows: args.shadows.on(),
+        iso_normals: args.normals,
         background: args.background,
     };
     if let Some(l) = args

@@ -22,7 +22,7 @@ mod shading;
 
 pub use avg::AvgState;
 pub use dvr::DvrState;
-pub use iso::{CellCubic, IsoHit, IsoState};
+pub use iso::{CellCubic, IsoHit, IsoNormals, IsoState};
 pub use mip::MipState;
 pub use segment::RaySegment;
 pub use shading::Phong;
@@ -216,6 +216,8 @@ pub struct FrameContext<'a, V: Volume> {
     pub lights: &'a [Vec3],
     /// Shadow rays towards each light ([`RenderMode::Iso`]).
     pub shadows: bool,
+    /// How [`RenderMode::Iso`] finds its normals.
+    pub iso_normals: IsoNormals,
     /// Divisor of [`RenderMode::Avg`].
     pub avg_norm: f32,
 }

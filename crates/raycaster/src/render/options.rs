@@ -2,7 +2,7 @@
 
 use glam::Vec3;
 
-use crate::integrator::{Phong, RenderMode};
+use crate::integrator::{IsoNormals, Phong, RenderMode};
 use crate::volume::Grid;
 
 /// What to render and how.
@@ -29,6 +29,8 @@ pub struct RenderOptions {
     pub lights: Vec<Vec3>,
     /// Shadow rays towards each light in [`RenderMode::Iso`].
     pub shadows: bool,
+    /// How [`RenderMode::Iso`] finds its normals.
+    pub iso_normals: IsoNormals,
     /// Background colour, 0..1.
     pub background: Vec3,
 }
@@ -46,6 +48,7 @@ impl Default for RenderOptions {
             iso_value: 128.0,
             lights: Vec::new(),
             shadows: false,
+            iso_normals: IsoNormals::Gradient,
             background: Vec3::ZERO,
         }
     }

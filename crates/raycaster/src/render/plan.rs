@@ -187,6 +187,7 @@ impl FramePlan {
             iso_value: options.iso_value,
             lights: &self.lights,
             shadows: options.shadows,
+            iso_normals: options.iso_normals,
             avg_norm: <V::Sample as crate::sample::Sample>::TYPE.max_value(),
         }
     }

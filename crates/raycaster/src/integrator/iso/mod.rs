@@ -30,7 +30,29 @@ use glam::{IVec3, UVec3, Vec3, Vec4};
 use super::{FrameContext, Integrator, Occupancy, Span};
 use crate::accel::{CellClass, CellMasks, SkipGrid};
 use crate::geometry::Aabb;
-use crate::volume::Volume;
+use crate::volume::{Corners, Volume};
+
+/// How an isosurface's normal is found at a hit.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, serde::Serialize, serde::Deserialize)]
+#[serde(rename_all = "lowercase")]
+#[cfg_attr(feature = "clap", derive(clap::ValueEnum))]
+pub enum IsoNormals {
+    /// The trilinear interpolation of the corners' central differences
+    /// (smooth across cells; what volume rendering shades with).
+    #[default]
+    #[cfg_attr(
+        feature = "clap",
+        value(help = "Interpolated central differences of the corners (smooth)")
+    )]
+    Gradient,
+    /// The exact derivative of the cell's trilinear interpolant (faceted:
+    /// it jumps at cell faces).
+    #[cfg_attr(
+        feature = "clap",
+        value(help = "Exact derivative of the cell's trilinear interpolant (faceted)")
+    )]
+    Analytic,
+}
 
 /// Where a ray first crosses the iso value.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -103,7 +125,14 @@ impl Integrator for IsoState {
         let c = ctx.tf.evaluate(ctx.iso_value).truncate();
         let rgb = match &ctx.shading {
             Some(ph) => {
-                let g = ctx.volume.gradient(hit.pos);
+                let g = match ctx.iso_normals {
+                    IsoNormals::Gradient => ctx.volume.gradient(hit.pos),
+                    IsoNormals::Analytic => {
+                        let corners = ctx.volume.corners(hit.cell);
+                        trilinear_derivative(&corners, hit.pos - hit.cell.as_vec3())
+                            / ctx.volume.grid().spacing
+                    }
+                };
                 let len = g.length();
                 if len > 0.0 && len.is_finite() {
                     // Two-sided: the normal faces the camera.
@@ -136,6 +165,20 @@ impl Integrator for IsoState {
     }
 }
 
+/// The derivative of the trilinear interpolant of `c` at fractions `f`
+/// (value units per voxel).
+fn trilinear_derivative(c: &Corners, f: Vec3) -> Vec3 {
+    let lerp = |a: f32, b: f32, t: f32| a + (b - a) * t;
+    let bi = |a: f32, b: f32, c: f32, d: f32, s: f32, t: f32| lerp(lerp(a, b, t), lerp(c, d, t), s);
+    // Along each axis: the difference of the two faces across it, each
+    // interpolated bilinearly in the other two fractions.
+    Vec3::new(
+        bi(c[4], c[5], c[6], c[7], f.y, f.z) - bi(c[0], c[1], c[2], c[3], f.y, f.z),
+        bi(c[2], c[3], c[6], c[7], f.x, f.z) - bi(c[0], c[1], c[4], c[5], f.x, f.z),
+        bi(c[1], c[3], c[5], c[7], f.x, f.y) - bi(c[0], c[2], c[4], c[6], f.x, f.y),
+    )
+}
+
 /// Whether the surface point `p` (voxel space) with normal `n` (world,
 /// facing the light) is hidden from a directional light towards `l`
 /// (world, unit) by the isosurface.
@@ -148,7 +191,7 @@ fn in_shadow<V: Volume>(ctx: &FrameContext<'_, V>, p: Vec3, n: Vec3, l: Vec3) ->
     let ray = VoxelRay::new(origin, l / grid.spacing);
     let bounds = Aabb::new(Vec3::ZERO, grid.max_coord());
     let t1 = bounds.exit(ray.origin, ray.inv_dir);
-    if !(t1 > 0.0) {
+    if t1.is_nan() || t1 <= 0.0 {
         return false;
     }
     let mut search = Search::new(ctx.volume, ctx.iso_value, None);
@@ -254,7 +297,7 @@ impl<'v, V: Volume> Search<'v, V> {
     /// `masks`, those of one macrocell (its fine bit sets and its lowest
     /// cell), opening only the cells that straddle the iso value.
     fn cells(&mut self, ray: &VoxelRay, ta: f32, tb: f32, masks: Option<(CellMasks<'_>, UVec3)>) {
-        if !(ta < tb) {
+        if ta.is_nan() || tb.is_nan() || ta >= tb {
             return;
         }
         let grid = self.volume.grid();
@@ -388,4 +431,27 @@ impl<'v, V: Volume> Search<'v, V> {
 #[inline(always)]
 fn masks_side(masks: &Option<(CellMasks<'_>, UVec3)>) -> u32 {
     masks.as_ref().map_or(1, |(m, _)| m.side())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::volume::interpolate;
+
+    #[test]
+    fn the_analytic_derivative_is_the_interpolants() {
+        let mut rng = fastrand::Rng::with_seed(4);
+        for _ in 0..500 {
+            let c: Corners = std::array::from_fn(|_| rng.f32() * 10.0 - 5.0);
+            let f = Vec3::new(rng.f32(), rng.f32(), rng.f32()) * 0.98 + 0.01;
+            let d = trilinear_derivative(&c, f);
+            let h = 1e-3;
+            for a in 0..3 {
+                let mut e = Vec3::ZERO;
+                e[a] = h;
+                let fd = (interpolate(&c, f + e) - interpolate(&c, f - e)) / (2.0 * h);
+                assert!((fd - d[a]).abs() < 2e-2, "axis {a}: {fd} vs {}", d[a]);
+            }
+        }
+    }
 }
