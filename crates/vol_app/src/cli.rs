@@ -43,6 +43,10 @@ pub struct ViewerArgs {
     /// How to read a headerless FILE.
     #[command(flatten)]
     pub raw: RawArgs,
+    /// Neither read nor write the macrocell cache file next to each volume
+    /// opened (see `vol_app render --help`).
+    #[arg(long)]
+    pub no_cache: bool,
 }
 
 /// Subcommands.

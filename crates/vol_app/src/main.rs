@@ -65,6 +65,7 @@ fn run_viewer(args: cli::ViewerArgs) -> Result<(), anyhow_like::Error> {
         tf_preset: args.tf_preset,
         tf,
         raw,
+        no_cache: args.no_cache,
     })?;
     Ok(())
 }

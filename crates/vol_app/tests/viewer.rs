@@ -140,8 +140,40 @@ fn open_file(dir: &TempDir) -> (H, PathBuf) {
         tf_preset: Some("shapes".into()),
         tf: None,
         raw: None,
+        no_cache: false,
     });
     (h, path)
+}
+
+/// `--no-cache`: the viewer opens a volume without writing the macrocell
+/// cache beside it; without it the cache appears.
+#[test]
+fn no_cache_leaves_no_cache_file() {
+    let dir = TempDir::new("no_cache");
+    let path = volume_file(&dir, "ball.vol", UVec3::new(30, 26, 22), VolLayout::Linear);
+    let caches = || {
+        std::fs::read_dir(dir.path("."))
+            .unwrap()
+            .filter(|e| {
+                e.as_ref()
+                    .is_ok_and(|e| e.file_name().to_string_lossy().ends_with(".rcidx"))
+            })
+            .count()
+    };
+    let h = settled_harness(StartOptions {
+        file: Some(path.clone()),
+        no_cache: true,
+        ..Default::default()
+    });
+    assert!(app(&h).volume().is_some(), "{:?}", app(&h).error());
+    assert_eq!(caches(), 0, "--no-cache wrote a cache file");
+    drop(h);
+    let h = settled_harness(StartOptions {
+        file: Some(path),
+        ..Default::default()
+    });
+    assert!(app(&h).volume().is_some());
+    assert_eq!(caches(), 1, "the cache was not written");
 }
 
 /// Drops `path` on the window and steps until it is open and rendered.

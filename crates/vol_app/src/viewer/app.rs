@@ -34,6 +34,8 @@ pub struct StartOptions {
     pub tf: Option<TransferFunction>,
     /// How to read `file` when it is headerless (raw).
     pub raw: Option<raycaster::format::RawOptions>,
+    /// Neither read nor write macrocell cache files (`--no-cache`).
+    pub no_cache: bool,
 }
 
 /// The volume on screen.
@@ -82,6 +84,8 @@ pub struct ViewerApp {
     frames_received: u64,
     pub(super) last_scroll: Option<Instant>,
     pub(super) canvas_aspect: f32,
+    /// Every volume opened skips the macrocell cache (`--no-cache`).
+    no_cache: bool,
 }
 
 impl ViewerApp {
@@ -115,6 +119,7 @@ impl ViewerApp {
             frames_received: 0,
             last_scroll: None,
             canvas_aspect: 1.0,
+            no_cache: start.no_cache,
         };
         match &start.file {
             Some(p) => app.open_with(p, start.raw.clone()),
@@ -150,7 +155,9 @@ impl ViewerApp {
 
     fn start_loading(&mut self, source: Source) {
         let wake = self.ctx.clone();
-        self.loading = Some(LoadJob::start(source, move || wake.request_repaint()));
+        self.loading = Some(LoadJob::start(source, self.no_cache, move || {
+            wake.request_repaint()
+        }));
     }
 
     /// The settings (persisted between runs).

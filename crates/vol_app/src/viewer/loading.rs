@@ -299,9 +299,10 @@ pub struct LoadJob {
 }
 
 impl LoadJob {
-    /// Starts loading `source`; `wake` is called from the loading thread
-    /// whenever there is news (progress or the result).
-    pub fn start(source: Source, wake: impl Fn() + Send + Sync + 'static) -> Self {
+    /// Starts loading `source` (without the macrocell cache when
+    /// `no_cache`); `wake` is called from the loading thread whenever there
+    /// is news (progress or the result).
+    pub fn start(source: Source, no_cache: bool, wake: impl Fn() + Send + Sync + 'static) -> Self {
         let wake: Arc<dyn Fn() + Send + Sync> = Arc::new(wake);
         let (tx, rx) = crossbeam_channel::bounded(1);
         let progress = Arc::new(Progress::default());
@@ -315,7 +316,7 @@ impl LoadJob {
             .name("vol_app-load".into())
             .spawn(move || {
                 let result = std::panic::catch_unwind(std::panic::AssertUnwindSafe(|| {
-                    load(&source, &progress, wake.clone())
+                    load(&source, no_cache, &progress, wake.clone())
                 }))
                 .unwrap_or_else(|_| {
                     Err(format!("{}: internal error while loading", source.name()))
@@ -360,6 +361,7 @@ impl LoadJob {
 
 fn load(
     source: &Source,
+    no_cache: bool,
     progress: &Arc<Progress>,
     wake: Arc<dyn Fn() + Send + Sync>,
 ) -> Result<Loaded, String> {
@@ -375,6 +377,11 @@ fn load(
                 p.set(Phase::Accelerating, Some(f));
                 w();
             })),
+            cache: if no_cache {
+                raycaster::accel::cache::CachePolicy::Off
+            } else {
+                raycaster::accel::cache::CachePolicy::Auto
+            },
             ..Default::default()
         }
     };
@@ -516,13 +523,14 @@ mod tests {
 
     #[test]
     fn the_demo_loads_and_a_missing_file_is_an_error() {
-        let job = LoadJob::start(Source::Demo, || {});
+        let job = LoadJob::start(Source::Demo, false, || {});
         let loaded = wait(&job).unwrap();
         assert_eq!(loaded.info.dims, UVec3::splat(crate::demo::DEMO_SIZE));
         assert_eq!(loaded.info.storage, StorageKind::Ram);
         assert!(loaded.histogram.counts.iter().sum::<u64>() > 0);
         let job = LoadJob::start(
             Source::File("/nonexistent/x.vol".into(), LoadMode::Map, None),
+            false,
             || {},
         );
         let err = wait(&job).unwrap_err();
