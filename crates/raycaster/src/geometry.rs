@@ -1,6 +1,6 @@
 //! Rays and axis-aligned boxes.
 
-use glam::Vec3;
+use glam::{Vec3, Vec3A};
 
 /// A ray `origin + t·dir`; renderers keep `dir` normalised so that `t` is a
 /// world-space distance.
@@ -91,10 +91,14 @@ impl Aabb {
     /// The exit parameter of a ray known to start inside the box.
     #[inline]
     pub fn exit(&self, origin: Vec3, inv_dir: Vec3) -> f32 {
-        let t0 = (self.min - origin) * inv_dir;
-        let t1 = (self.max - origin) * inv_dir;
-        let far = t0.max(t1);
-        far.x.min(far.y).min(far.z)
+        let inv = Vec3A::from(inv_dir);
+        // Per axis the far plane: the upper one for a positive direction,
+        // the lower one for a negative one. An axis the ray is parallel to
+        // (1/d = ±∞) never ends it, even with the origin on a plane
+        // (0·∞ = NaN); three lanes at once.
+        let far = Vec3A::select(inv.cmpge(Vec3A::ZERO), self.max.into(), self.min.into());
+        let t = (far - Vec3A::from(origin)) * inv;
+        Vec3A::select(inv.abs().cmplt(Vec3A::INFINITY), t, Vec3A::INFINITY).min_element()
     }
 }
 
