@@ -54,11 +54,13 @@ import time
 
 import numpy as np
 
-# The `shapes` preset (crates/raycaster/src/transfer.rs, SPEC §4): step TF.
+# The `shapes` preset (crates/raycaster/src/transfer.rs, SPEC §4): step TF,
+# its bounds just above the values the generator writes (85, 95, 100), so a
+# shape of exactly 95 is red and one of 100 blue, as in the thesis's TF.
 SHAPES_TF = [
-    (85.0, (255 / 255, 30 / 255, 60 / 255), 0.02),
-    (95.0, (10 / 255, 60 / 255, 180 / 255), 0.3),
-    (100.0, (90 / 255, 210 / 255, 20 / 255), 0.6),
+    (85.001, (255 / 255, 30 / 255, 60 / 255), 0.02),
+    (95.001, (10 / 255, 60 / 255, 180 / 255), 0.3),
+    (100.001, (90 / 255, 210 / 255, 20 / 255), 0.6),
     (115.0, (0.0, 0.0, 0.0), 0.0),
 ]
 
