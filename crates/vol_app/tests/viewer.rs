@@ -439,6 +439,23 @@ fn iso_shadows_and_lights_reach_the_renderer() {
     h.get_by_label("Headlight");
     let headlit = app(&h).last_frame().unwrap().frame.rgb.clone();
 
+    h.get_by_label("Faceted normals").click();
+    h.step();
+    settle(&mut h);
+    assert_eq!(
+        opts(&h).iso_normals,
+        raycaster::integrator::IsoNormals::Analytic
+    );
+    assert_ne!(
+        app(&h).last_frame().unwrap().frame.rgb,
+        headlit,
+        "faceted normals changed nothing"
+    );
+    h.get_by_label("Faceted normals").click();
+    h.step();
+    settle(&mut h);
+    assert_eq!(opts(&h).iso_normals, Default::default());
+
     h.get_by_label("Shadows").click();
     h.get_by_label("Add light").click();
     h.step();

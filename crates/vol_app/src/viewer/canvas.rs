@@ -163,6 +163,7 @@ impl ViewerApp {
                 iso_value: s.iso_value,
                 lights: s.light_directions(),
                 shadows: s.shadows,
+                iso_normals: s.iso_normals,
                 ..RenderOptions::default()
             },
             renderer: s.renderer,

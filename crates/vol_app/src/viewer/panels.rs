@@ -2,7 +2,7 @@
 //! options and camera, one collapsible section each.
 
 use egui::{CollapsingHeader, Ui};
-use raycaster::integrator::RenderMode;
+use raycaster::integrator::{IsoNormals, RenderMode};
 use raycaster::render::RendererKind;
 use raycaster::storage::StorageKind;
 use raycaster::transfer::PRESET_NAMES;
@@ -240,6 +240,21 @@ impl ViewerApp {
 fn lights_editor(ui: &mut Ui, s: &mut Settings) -> bool {
     ui.checkbox(&mut s.shadows, "Shadows")
         .on_hover_text("Cast a shadow ray towards each light from every surface hit");
+    let mut analytic = s.iso_normals == IsoNormals::Analytic;
+    if ui
+        .checkbox(&mut analytic, "Faceted normals")
+        .on_hover_text(
+            "Normals from the exact derivative of each cell's interpolant (faceted) \
+             instead of the interpolated central differences (smooth)",
+        )
+        .changed()
+    {
+        s.iso_normals = if analytic {
+            IsoNormals::Analytic
+        } else {
+            IsoNormals::Gradient
+        };
+    }
     ui.horizontal(|ui| {
         ui.label("Lights:");
         if s.lights.is_empty() {

@@ -126,6 +126,8 @@ pub struct Settings {
     pub lights: Vec<LightAngles>,
     /// Shadow rays towards each light in [`RenderMode::Iso`].
     pub shadows: bool,
+    /// How [`RenderMode::Iso`] finds its normals (`--normals`).
+    pub iso_normals: raycaster::integrator::IsoNormals,
     /// Phong shading.
     pub shading: bool,
     /// Renderer.
@@ -162,6 +164,7 @@ impl Default for Settings {
             iso_value: 100.0,
             lights: Vec::new(),
             shadows: false,
+            iso_normals: Default::default(),
             shading: true,
             // The viewer's default so far; the library's (and `vol_app
             // render`'s) is the object renderer.
