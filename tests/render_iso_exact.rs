@@ -8,6 +8,7 @@
 mod common;
 
 use common::rays::{RayLab, random_ray};
+use common::reference::{self as r, RefMode, RefOptions, RefTf, RefVolume};
 use common::scenes::{opts, render, tf_points};
 use glam::{DVec3, UVec3, Vec3};
 use raycaster::geometry::Ray;
@@ -21,54 +22,31 @@ fn white() -> TransferFunction {
     )
 }
 
-/// The f64 trilinear interpolant of `f` (voxel values) at voxel-space `p`,
-/// clamped onto a grid of `dims`.
-fn trilinear(f: &impl Fn(UVec3) -> f64, dims: UVec3, p: DVec3) -> f64 {
-    let hi = (dims - UVec3::ONE).as_dvec3();
-    let p = p.clamp(DVec3::ZERO, hi);
-    let last = (dims.max(UVec3::splat(2)) - UVec3::splat(2)).as_dvec3();
-    let c = p.floor().min(last);
-    let t = p - c;
-    let c = c.as_uvec3();
-    let mut v = 0.0;
-    for n in 0..8u32 {
-        let o = UVec3::new(n >> 2, (n >> 1) & 1, n & 1);
-        let w = |a: usize| if o[a] == 1 { t[a] } else { 1.0 - t[a] };
-        let q = (c + o).min(dims - UVec3::ONE);
-        v += f(q) * w(0) * w(1) * w(2);
-    }
-    v
+/// The f64 reference volume of `field` on `grid` (origin 0, as the
+/// library's `Grid::new`).
+fn reference_volume(grid: &Grid, field: impl Fn(UVec3) -> f64) -> RefVolume {
+    let d = grid.dims;
+    RefVolume::from_fn(
+        [d.x as usize, d.y as usize, d.z as usize],
+        grid.spacing.as_dvec3().to_array(),
+        1.0,
+        |x, y, z| field(UVec3::new(x as u32, y as u32, z as u32)),
+    )
 }
 
-/// The first crossing of `iso` (a change of `value ≥ iso`) along `ray`
-/// inside the grid, by f64 stepping of 1/256 voxel and bisection; voxel
-/// space.
-fn reference_hit(f: &impl Fn(UVec3) -> f64, grid: &Grid, ray: &Ray, iso: f64) -> Option<DVec3> {
-    let (t0, t1) = grid.bounds().intersect(ray)?;
-    let o = grid.world_to_voxel(ray.origin).as_dvec3();
-    let d = (ray.dir / grid.spacing).as_dvec3();
-    let at = |t: f64| o + d * t;
-    let g = |t: f64| trilinear(f, grid.dims, at(t)) - iso;
-    let dt = 1.0 / 256.0 / d.abs().max_element();
-    let side = g(t0 as f64) >= 0.0;
-    let mut a = t0 as f64;
-    while a < t1 as f64 {
-        let b = (a + dt).min(t1 as f64);
-        if (g(b) >= 0.0) != side {
-            let (mut lo, mut hi) = (a, b);
-            for _ in 0..60 {
-                let m = 0.5 * (lo + hi);
-                if (g(m) >= 0.0) == side {
-                    lo = m;
-                } else {
-                    hi = m;
-                }
-            }
-            return Some(at(0.5 * (lo + hi)));
-        }
-        a = b;
-    }
-    None
+/// The reference's first crossing of `iso` along `ray` (`tests/common/
+/// reference.rs`: f64 steps of 1/32 spacing and bisection), voxel space.
+fn reference_hit(vol: &RefVolume, grid: &Grid, ray: &Ray, iso: f64) -> Option<DVec3> {
+    let opts = RefOptions {
+        mode: RefMode::Iso(iso),
+        step: 1.0,
+        ert: None,
+        background: [0.0; 3],
+    };
+    let o = ray.origin.as_dvec3().to_array();
+    let d = ray.dir.as_dvec3().to_array();
+    let hit = r::integrate(vol, &RefTf::shapes(), &opts, o, d).hit?;
+    Some(DVec3::from_array(hit.1) / grid.spacing.as_dvec3())
 }
 
 /// Our hit for `ray`, voxel space.
@@ -90,6 +68,7 @@ fn compare_with_reference(
     seed: u64,
 ) -> usize {
     let grid = *scene.grid();
+    let vol = reference_volume(&grid, &field);
     let tf = white();
     let lab = RayLab::iso(scene, &tf, step, iso);
     let mut rng = fastrand::Rng::with_seed(seed);
@@ -99,7 +78,7 @@ fn compare_with_reference(
     for _ in 0..rays {
         let inside = rng.bool();
         let ray = random_ray(&mut rng, lo, hi, inside);
-        let want = reference_hit(&field, &grid, &ray, iso as f64);
+        let want = reference_hit(&vol, &grid, &ray, iso as f64);
         for ess in [true, false] {
             let got = our_hit(&lab, &grid, &ray, ess);
             match (want, got) {
@@ -115,10 +94,11 @@ fn compare_with_reference(
                 (Some(w), None) => panic!("missed the crossing at {w} (ess {ess}, ray {ray:?})"),
                 (None, Some(g)) => {
                     // Only a pair of crossings closer than the reference's
-                    // 1/256-voxel steps may hide from it: then the field
+                    // 1/32-spacing steps may hide from it: then the field
                     // must really change side around our hit.
                     let dv = (ray.dir / grid.spacing).as_dvec3().normalize() * 2e-3;
-                    let side = |p: DVec3| trilinear(&field, grid.dims, p) >= iso as f64;
+                    let world = |p: DVec3| (p * grid.spacing.as_dvec3()).to_array();
+                    let side = |p: DVec3| vol.value_at(world(p)) >= iso as f64;
                     assert_ne!(
                         side(g - dv),
                         side(g + dv),

@@ -87,13 +87,6 @@ pub fn run(args: &RenderArgs) -> Result<(), Error> {
         iso_normals: args.normals,
         background: args.background,
     };
-    if let Some(l) = args
-        .lights
-        .iter()
-        .find(|l| !(l.is_finite() && l.length() > 0.0))
-    {
-        return Err(format!("--light {l}: the direction must be finite and not zero").into());
-    }
     if let Some(s) = args.step
         && !(s.is_finite() && s > 0.0)
     {

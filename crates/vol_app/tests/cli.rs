@@ -312,6 +312,11 @@ fn bad_arguments_give_one_line_errors() {
         ),
         (vec!["--tf", "/nonexistent/tf.json"], "/nonexistent/tf.json"),
         (vec!["--repeat", "0"], "0"),
+        (
+            vec!["--mode", "iso", "--light", "0,0,0"],
+            "invalid light: direction",
+        ),
+        (vec!["--normals", "bumpy"], "bumpy"),
     ];
     for (args, needle) in cases {
         let out = output(vol_app().args(["render", f]).args(&args).args(["--stats"]));

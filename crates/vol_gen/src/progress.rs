@@ -13,27 +13,28 @@ pub struct Progress {
 impl Progress {
     /// A bar for `total` bytes; drawn only when `visible` and stderr is a terminal.
     pub fn new(total: u64, visible: bool) -> Self {
-        let bar = ProgressBar::with_draw_target(Some(total), ProgressDrawTarget::hidden());
-        if visible && std::io::stderr().is_terminal() {
-            bar.set_draw_target(ProgressDrawTarget::stderr());
-            if let Ok(style) = ProgressStyle::with_template(
-                "{spinner} [{elapsed_precise}] {wide_bar} {bytes}/{total_bytes} {bytes_per_sec} ETA {eta}",
-            ) {
-                bar.set_style(style);
-            }
-        }
-        Progress { bar }
+        Self::with_template(
+            total,
+            visible,
+            "{spinner} [{elapsed_precise}] {wide_bar} {bytes}/{total_bytes} {bytes_per_sec} ETA {eta}",
+        )
     }
 
     /// A bar for `total` voxels computed (the mesh SDF, which is computed
     /// before it is written).
     pub fn voxels(total: u64, visible: bool) -> Self {
+        Self::with_template(
+            total,
+            visible,
+            "{spinner} [{elapsed_precise}] {wide_bar} {human_pos}/{human_len} voxels {per_sec} ETA {eta}",
+        )
+    }
+
+    fn with_template(total: u64, visible: bool, template: &str) -> Self {
         let bar = ProgressBar::with_draw_target(Some(total), ProgressDrawTarget::hidden());
         if visible && std::io::stderr().is_terminal() {
             bar.set_draw_target(ProgressDrawTarget::stderr());
-            if let Ok(style) = ProgressStyle::with_template(
-                "{spinner} [{elapsed_precise}] {wide_bar} {human_pos}/{human_len} voxels {per_sec} ETA {eta}",
-            ) {
+            if let Ok(style) = ProgressStyle::with_template(template) {
                 bar.set_style(style);
             }
         }

@@ -199,106 +199,39 @@ fn bad_input_is_one_line_and_no_file() {
     .unwrap();
     let missing = dir.path("missing.obj");
     let out = dir.path("out.nrrd");
-    let out_s = out.to_str().unwrap();
     let vol = dir.path("x.vol");
-    let cases: Vec<(Vec<&str>, &str)> = vec![
+    // `--dims D -g GENERATOR [--mesh MESH] -o OUT`.
+    let args = |dims: &'static str, generator: &'static str, mesh: Option<&Path>, out: &Path| {
+        let mut a = vec![
+            "--dims".to_string(),
+            dims.into(),
+            "-g".into(),
+            generator.into(),
+        ];
+        if let Some(m) = mesh {
+            a.extend(["--mesh".into(), m.to_str().unwrap().into()]);
+        }
+        a.extend(["-o".into(), out.to_str().unwrap().into()]);
+        a
+    };
+    let cases = [
+        (args("9,9,9", "mesh", Some(&good), &vol), "float format"),
+        (args("9,9,9", "mesh", None, &out), "needs --mesh"),
         (
-            vec![
-                "--dims",
-                "9,9,9",
-                "-g",
-                "mesh",
-                "--mesh",
-                good.to_str().unwrap(),
-                "-o",
-                vol.to_str().unwrap(),
-            ],
-            "float format",
-        ),
-        (
-            vec!["--dims", "9,9,9", "-g", "mesh", "-o", out_s],
-            "needs --mesh",
-        ),
-        (
-            vec![
-                "--dims",
-                "9,9,9",
-                "-g",
-                "solid",
-                "--mesh",
-                good.to_str().unwrap(),
-                "-o",
-                out_s,
-            ],
+            args("9,9,9", "solid", Some(&good), &out),
             "--generator mesh",
         ),
+        (args("9,9,9", "mesh", Some(&missing), &out), "missing.obj"),
+        (args("9,9,9", "mesh", Some(&truncated), &out), "truncated"),
         (
-            vec![
-                "--dims",
-                "9,9,9",
-                "-g",
-                "mesh",
-                "--mesh",
-                missing.to_str().unwrap(),
-                "-o",
-                out_s,
-            ],
-            "missing.obj",
-        ),
-        (
-            vec![
-                "--dims",
-                "9,9,9",
-                "-g",
-                "mesh",
-                "--mesh",
-                truncated.to_str().unwrap(),
-                "-o",
-                out_s,
-            ],
-            "truncated",
-        ),
-        (
-            vec![
-                "--dims",
-                "9,9,9",
-                "-g",
-                "mesh",
-                "--mesh",
-                out_of_range.to_str().unwrap(),
-                "-o",
-                out_s,
-            ],
+            args("9,9,9", "mesh", Some(&out_of_range), &out),
             "out of bounds",
         ),
-        (
-            vec![
-                "--dims",
-                "9,9,9",
-                "-g",
-                "mesh",
-                "--mesh",
-                empty.to_str().unwrap(),
-                "-o",
-                out_s,
-            ],
-            "no triangles",
-        ),
-        (
-            vec![
-                "--dims",
-                "6,60,60",
-                "-g",
-                "mesh",
-                "--mesh",
-                good.to_str().unwrap(),
-                "-o",
-                out_s,
-            ],
-            "margin",
-        ),
+        (args("9,9,9", "mesh", Some(&empty), &out), "no triangles"),
+        (args("6,60,60", "mesh", Some(&good), &out), "margin"),
     ];
     for (args, expected) in cases {
+        let args: Vec<&str> = args.iter().map(String::as_str).collect();
         let result = run(&args);
         let err = stderr(&result);
         assert!(!result.status.success(), "{args:?}");

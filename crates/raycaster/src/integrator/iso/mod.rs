@@ -97,7 +97,7 @@ impl Integrator for IsoState {
         } else {
             seg.t(span.end)
         };
-        let ray = VoxelRay::new(seg.origin, seg.dir);
+        let ray = VoxelRay::with_inverse(seg.origin, seg.dir, seg.inv_dir);
         let mut search = Search::new(ctx.volume, ctx.iso_value, self.side);
         search.walk(ctx.ess.then_some(ctx.skip), &ray, t0, t1);
         self.side = search.side;
@@ -219,11 +219,18 @@ pub(crate) struct VoxelRay {
 
 impl VoxelRay {
     pub fn new(origin: Vec3, dir: Vec3) -> Self {
+        Self::with_inverse(origin, dir, dir.recip())
+    }
+
+    /// As [`VoxelRay::new`] with `1/dir` known (a [`RaySegment`]'s).
+    ///
+    /// [`RaySegment`]: super::RaySegment
+    pub fn with_inverse(origin: Vec3, dir: Vec3, inv_dir: Vec3) -> Self {
         let axis_step = |d: f32| (d > 0.0) as i32 - (d < 0.0) as i32;
         VoxelRay {
             origin,
             dir,
-            inv_dir: dir.recip(),
+            inv_dir,
             step: IVec3::new(axis_step(dir.x), axis_step(dir.y), axis_step(dir.z)),
             nudge: 1e-4 / dir.abs().max_element().max(1e-30),
             tol: 1e-5 / dir.length().max(1e-30),
@@ -240,6 +247,8 @@ impl VoxelRay {
 pub(crate) struct Search<'v, V: Volume> {
     volume: &'v V,
     iso: f32,
+    /// The highest interpolation cell per axis.
+    last: IVec3,
     /// The side of the iso value where the walk so far ended.
     pub side: Option<bool>,
     /// The crossing: ray parameter and cell.
@@ -250,9 +259,11 @@ pub(crate) struct Search<'v, V: Volume> {
 
 impl<'v, V: Volume> Search<'v, V> {
     pub fn new(volume: &'v V, iso: f32, side: Option<bool>) -> Self {
+        let dims = volume.grid().dims;
         Search {
             volume,
             iso,
+            last: (dims.max(UVec3::splat(2)) - UVec3::splat(2)).as_ivec3(),
             side,
             hit: None,
             steps: 0,
@@ -300,13 +311,11 @@ impl<'v, V: Volume> Search<'v, V> {
         if ta.is_nan() || tb.is_nan() || ta >= tb {
             return;
         }
-        let grid = self.volume.grid();
-        let mut last = (grid.dims.max(UVec3::splat(2)) - UVec3::splat(2)).as_ivec3();
-        let mut first = IVec3::ZERO;
-        if let Some((_, origin)) = masks {
+        let (mut first, mut last) = (IVec3::ZERO, self.last);
+        if let Some((m, origin)) = &masks {
             // Stay inside the macrocell: its cells are origin .. origin + m.
             first = origin.as_ivec3();
-            last = last.min(first + IVec3::splat(masks_side(&masks) as i32 - 1));
+            last = last.min(first + IVec3::splat(m.side() as i32 - 1));
         }
         let nudge = ray.nudge;
         let start = ray.at(ta + nudge.min(0.5 * (tb - ta)));
@@ -348,7 +357,8 @@ impl<'v, V: Volume> Search<'v, V> {
                 Some((m, origin)) => {
                     let local = c - *origin;
                     if m.straddles(local) {
-                        self.crossing(ray, c, tc, te, tol)
+                        let corners = self.volume.corners(c);
+                        self.crossing(ray, c, &corners, tc, te, tol)
                     } else {
                         self.one_side(m.above(local), tc, c)
                     }
@@ -402,16 +412,23 @@ impl<'v, V: Volume> Search<'v, V> {
             // combination of the corners).
             return self.one_side(lo >= self.iso, tc, cell);
         }
-        self.crossing(ray, cell, tc, te, tol)
+        self.crossing(ray, cell, &corners, tc, te, tol)
     }
 
-    /// Solves for the first crossing inside `cell`, whose corners straddle
-    /// the iso value, on `[tc, te]`; true when found.
+    /// Solves for the first crossing inside `cell`, whose `corners`
+    /// straddle the iso value, on `[tc, te]`; true when found.
     #[inline]
-    fn crossing(&mut self, ray: &VoxelRay, cell: UVec3, tc: f32, te: f32, tol: f32) -> bool {
-        let corners = self.volume.corners(cell);
+    fn crossing(
+        &mut self,
+        ray: &VoxelRay,
+        cell: UVec3,
+        corners: &Corners,
+        tc: f32,
+        te: f32,
+        tol: f32,
+    ) -> bool {
         let p0 = ray.at(tc) - cell.as_vec3();
-        let cubic = CellCubic::new(&corners, p0, ray.dir, self.iso);
+        let cubic = CellCubic::new(corners, p0, ray.dir, self.iso);
         let start_side = cubic.eval(0.0) >= 0.0;
         if self.side == Some(!start_side) {
             self.hit = Some((tc, cell));
@@ -425,12 +442,6 @@ impl<'v, V: Volume> Search<'v, V> {
         self.side = Some(cubic.eval(len) >= 0.0);
         false
     }
-}
-
-/// The macrocell side of a fine level's masks.
-#[inline(always)]
-fn masks_side(masks: &Option<(CellMasks<'_>, UVec3)>) -> u32 {
-    masks.as_ref().map_or(1, |(m, _)| m.side())
 }
 
 #[cfg(test)]
