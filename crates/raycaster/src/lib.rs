@@ -20,6 +20,7 @@
 //! | [`integrator`] | what happens along one ray, per mode |
 //! | [`render`] | which rays are cast on which threads |
 //! | [`scene`] | a volume plus its acceleration data |
+//! | [`sequence`] | time series: frames of one geometry, decoded ahead of a player |
 //! | [`units`] | numbers and byte counts as people read them |
 //! | `cli` | the programs' shared command-line behaviour (feature `clap`) |
 //!
@@ -72,6 +73,7 @@ pub mod integrator;
 pub mod render;
 pub mod sample;
 pub mod scene;
+pub mod sequence;
 pub mod simd;
 pub mod storage;
 pub mod transfer;

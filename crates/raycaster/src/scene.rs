@@ -230,7 +230,9 @@ fn cache_key(
     report: &mut CacheReport,
 ) -> Option<CacheKey> {
     let meta = std::fs::metadata(path).ok()?;
-    if !meta.is_file() || meta.len() != info.file_bytes {
+    // A file of several volumes (a 4-D file, a sequence) would need one
+    // cache per volume under one name; its frames are built as they come.
+    if !meta.is_file() || meta.len() != info.file_bytes || info.volumes > 1 {
         return None;
     }
     // How the bytes were read: a raw file read with other dimensions or

@@ -53,13 +53,56 @@ pub struct ViewerArgs {
 #[derive(Debug, Subcommand)]
 pub enum Command {
     /// Render a volume to a PNG without a window, optionally timing it.
-    Render(RenderArgs),
+    Render(Box<RenderArgs>),
     /// Describe a volume file: format, dimensions, sample type, spacing,
     /// value range, orientation as stored, size on disk and in memory.
     Info(InfoArgs),
     /// Convert a volume to another format, chosen by OUT's name: .vol,
     /// .nrrd, .nii, .nii.gz, .raw/.bin (x fastest, little-endian).
     Convert(ConvertArgs),
+    /// Pack a sequence of volumes (a 4-D NIfTI/NRRD, a directory of frame
+    /// files, or another .vseq) into a .vseq file: frames compressed one by
+    /// one, any frame readable on its own.
+    Pack(PackArgs),
+}
+
+/// `vol_app pack INPUT -o OUT.vseq`.
+#[derive(Debug, Args)]
+#[command(
+    after_help = "The layout of .vseq files is in the README. LZ4 decodes fastest, zstd packs smaller; --f16 halves f32 frames (about 3 significant digits, lossy); --key-interval K > 1 stores frames between key frames as differences from the previous frame (lossless; smaller for slowly changing data; a frame then decodes from the key frame before it, at most K frames).\n\nExamples:\n  vol_app pack volumes/plume/ -o volumes/plume.vseq --codec zstd --f16\n  vol_app pack fmri.nii.gz -o fmri.vseq --codec lz4 --key-interval 8"
+)]
+pub struct PackArgs {
+    /// The sequence to pack: a 4-D .nii/.nii.gz/.nrrd, a directory of volume
+    /// files (frames in name order), or a .vseq.
+    pub input: PathBuf,
+    /// The .vseq file to write; it appears only when complete.
+    #[arg(short = 'o', long = "out", value_name = "OUT.vseq")]
+    pub output: PathBuf,
+    /// Codec of the frames' chunks.
+    #[arg(long, value_enum, default_value_t = raycaster::format::vseq::Codec::Lz4)]
+    pub codec: raycaster::format::vseq::Codec,
+    /// zstd level (1 fast .. 22 smallest).
+    #[arg(long, value_name = "N", default_value_t = 3, value_parser = clap::value_parser!(i32).range(1..=22))]
+    pub level: i32,
+    /// Store f32 frames as half floats (lossy).
+    #[arg(long)]
+    pub f16: bool,
+    /// A key frame every K frames, difference frames between (1: all key frames).
+    #[arg(long, value_name = "K", default_value_t = 1, value_parser = clap::value_parser!(u32).range(1..))]
+    pub key_interval: u32,
+    /// KiB of stored samples per chunk (chunks decode in parallel; small
+    /// chunks compress worse).
+    #[arg(long, value_name = "KIB", default_value_t = 1024, value_parser = clap::value_parser!(u32).range(1..=1048576))]
+    pub chunk_kib: u32,
+    /// Do not byte-shuffle chunks before compressing them.
+    #[arg(long)]
+    pub no_shuffle: bool,
+    /// Replace OUT if it exists.
+    #[arg(long)]
+    pub force: bool,
+    /// Print the result as one JSON object.
+    #[arg(long)]
+    pub json: bool,
 }
 
 /// `vol_app convert IN OUT`.
@@ -108,7 +151,8 @@ pub enum VolLayoutArg {
 /// `vol_app info FILE`.
 #[derive(Debug, Args)]
 pub struct InfoArgs {
-    /// Volume file or DICOM directory.
+    /// Volume file, DICOM directory, sequence (.vseq, 4-D file) or
+    /// directory of frame files.
     pub file: PathBuf,
     /// Print one JSON object instead of text.
     #[arg(long)]
@@ -120,6 +164,34 @@ pub struct InfoArgs {
     /// How to read a headerless file.
     #[command(flatten)]
     pub raw: RawArgs,
+}
+
+/// Frames `start..end` (end excluded; `None`: to the last frame).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct FrameRange {
+    pub start: u32,
+    pub end: Option<u32>,
+}
+
+fn parse_frames(s: &str) -> Result<FrameRange, String> {
+    let bad = || format!("'{s}' is not a frame range: expected A..B, A..=B or A..");
+    let (a, b) = s.split_once("..").ok_or_else(bad)?;
+    let start: u32 = a.trim().parse().map_err(|_| bad())?;
+    let end = match b.trim() {
+        "" => None,
+        b => Some(match b.strip_prefix('=') {
+            Some(b) => b
+                .trim()
+                .parse::<u32>()
+                .map_err(|_| bad())?
+                .saturating_add(1),
+            None => b.parse().map_err(|_| bad())?,
+        }),
+    };
+    if end.is_some_and(|e| e <= start) {
+        return Err(format!("frame range '{s}' is empty"));
+    }
+    Ok(FrameRange { start, end })
 }
 
 /// Raw sample order.
@@ -177,6 +249,7 @@ impl RawArgs {
             mode,
             raw,
             progress: crate::progress::bar("decoding"),
+            volume: 0,
         }
     }
 }
@@ -222,12 +295,22 @@ volumes/800shapes_block16.vol --size 700x700 --camera-pos 1100,1100,1100 --look-
 )]
 pub struct RenderArgs {
     /// Volume file (.vol, .nrrd, .nhdr, .nii, .nii.gz, a DICOM directory or
-    /// file, UC Davis .vol, or raw with --raw-dims/--raw-type). Without it,
-    /// the built-in demo volume is rendered.
+    /// file, UC Davis .vol, or raw with --raw-dims/--raw-type) or sequence
+    /// (.vseq, a 4-D file, a directory of frame files). Without it, the
+    /// built-in demo volume is rendered.
     pub file: Option<PathBuf>,
-    /// Output PNG (RGB8). Default: out.png, unless --stats is given.
+    /// Output PNG (RGB8). Default: out.png, unless --stats is given. With
+    /// --frames: the directory the frames go to (frame_0000.png, ...).
     #[arg(long, value_name = "PNG")]
     pub out: Option<PathBuf>,
+    /// The frame of a sequence to render (from 0).
+    #[arg(long, value_name = "K", default_value_t = 0, conflicts_with = "frames")]
+    pub frame: u32,
+    /// Render frames A..B of a sequence (B excluded; A..=B includes it; A..
+    /// runs to the end), decoding ahead while rendering; --out DIR/ writes
+    /// one PNG per frame, --stats prints per-frame decode and render times.
+    #[arg(long, value_name = "A..B", value_parser = parse_frames, conflicts_with_all = ["repeat", "progressive"])]
+    pub frames: Option<FrameRange>,
     /// Image size in pixels.
     #[arg(long, value_name = "WxH", default_value = "700x700", value_parser = parse_size)]
     pub size: (u32, u32),

@@ -1,6 +1,7 @@
 //! `vol_app info FILE`: what a volume file holds, as text or JSON.
 
 use raycaster::prelude::*;
+use raycaster::sequence::{Sequence, frame_files};
 use raycaster::storage::StorageKind;
 use raycaster::units::{bytes, significant, value};
 
@@ -10,15 +11,22 @@ use crate::cli::InfoArgs;
 /// Runs the `info` subcommand.
 pub fn run(args: &InfoArgs) -> Result<(), Error> {
     // The value range comes from the macrocell grid, so from its cache
-    // when there is one: `info` on a huge volume reads no samples.
-    let opened = Scene::open(
-        &args.file,
-        &args.raw.open_options(LoadMode::Map),
-        &crate::cli::scene_options(None, args.no_cache),
-    )?;
-    crate::cli::warn_all(&opened.cache.warnings);
-    let info = &opened.info;
-    let scene = opened.scene;
+    // when there is one: `info` on a huge volume reads no samples. A
+    // directory of frame files is described by its first frame, after
+    // every frame is checked against it.
+    let open = args.raw.open_options(LoadMode::Map);
+    let scene_options = crate::cli::scene_options(None, args.no_cache);
+    let (info, scene) = if frame_files(&args.file).is_empty() {
+        let opened = Scene::open(&args.file, &open, &scene_options)?;
+        crate::cli::warn_all(&opened.cache.warnings);
+        (opened.info, opened.scene)
+    } else {
+        let sequence = Sequence::open(&args.file, &open)?;
+        sequence.check_all(crate::progress::bar("checking frames").as_ref())?;
+        let scene = Scene::with_options(sequence.frame(0)?, &scene_options);
+        (sequence.info().clone(), scene)
+    };
+    let info = &info;
     let volume = scene.volume();
     let in_memory = volume.sample_type();
     let storage = volume.storage_kind();
@@ -50,6 +58,7 @@ pub fn run(args: &InfoArgs) -> Result<(), Error> {
             "memory_bytes": memory_bytes,
             "storage": storage_name,
             "layout": layout.to_string(),
+            "frames": info.volumes,
         });
         println!("{v}");
         return Ok(());
@@ -59,6 +68,9 @@ pub fn run(args: &InfoArgs) -> Result<(), Error> {
     println!("file         {}", args.file.display());
     println!("format       {}", info.format);
     println!("dimensions   {} x {} x {}", d.x, d.y, d.z);
+    if info.volumes > 1 {
+        println!("frames       {} (values below are frame 0's)", info.volumes);
+    }
     println!("spacing      {}", triple(s));
     println!("extent       {} (world units)", triple(extent));
     let order = info

@@ -7,6 +7,7 @@
 mod cli;
 mod convert_cmd;
 mod info_cmd;
+mod pack_cmd;
 mod progress;
 mod progressive_cmd;
 mod render_cmd;
@@ -28,6 +29,7 @@ fn main() -> ExitCode {
         Some(cli::Command::Render(args)) => render_cmd::run(&args),
         Some(cli::Command::Info(args)) => info_cmd::run(&args),
         Some(cli::Command::Convert(args)) => convert_cmd::run(&args),
+        Some(cli::Command::Pack(args)) => pack_cmd::run(&args),
         None => run_viewer(cli.viewer),
     };
     match result {

@@ -1,14 +1,20 @@
 //! `vol_app render`: open, render, time, save.
 
+use std::sync::Arc;
 use std::time::Instant;
 
 use raycaster::camera::{Camera, Projection};
 use raycaster::prelude::*;
+use raycaster::scene::SceneOptions;
+use raycaster::sequence::{Playback, Sequence, frame_files};
 use raycaster::transfer::PRESET_NAMES;
 
 use crate::anyhow_like::Error;
-use crate::cli::RenderArgs;
-use crate::stats::{RenderStats, median, peak_rss_mb};
+use crate::cli::{FrameRange, RenderArgs};
+use crate::stats::{PlayStats, RenderStats, median, peak_rss_mb};
+
+/// Frames `--frames` keeps decoded ahead of the renderer.
+const PLAYBACK_AHEAD: u32 = 3;
 
 /// Runs the `render` subcommand.
 pub fn run(args: &RenderArgs) -> Result<(), Error> {
@@ -19,13 +25,60 @@ pub fn run(args: &RenderArgs) -> Result<(), Error> {
         LoadMode::Map
     };
     let scene_options = crate::cli::scene_options(args.macrocell, args.no_cache);
-    let scene = match &args.file {
-        Some(path) => {
-            let opened = Scene::open(path, &args.raw.open_options(mode), &scene_options)?;
-            crate::cli::warn_all(&opened.cache.warnings);
-            opened.scene
+    let open = || args.raw.open_options(mode);
+    // `--frames` plays a sequence; a directory of frame files is a
+    // sequence whatever is asked; other files open their volume `--frame`
+    // as a scene (with the macrocell cache where the file has one volume).
+    let mut playback = None;
+    let scene: Arc<Scene> = match &args.file {
+        Some(path) if args.frames.is_some() => {
+            let sequence = Arc::new(Sequence::open(path, &open())?);
+            let frames = args.frames.unwrap_or(FrameRange {
+                start: 0,
+                end: None,
+            });
+            let end = frames.end.unwrap_or(sequence.frames());
+            if frames.start >= sequence.frames() || end > sequence.frames() {
+                return Err(format!(
+                    "--frames {}..{end}: {} has {} frames (numbered from 0)",
+                    frames.start,
+                    path.display(),
+                    sequence.frames()
+                )
+                .into());
+            }
+            let options = SceneOptions {
+                progress: None,
+                ..scene_options.clone()
+            };
+            let p = Playback::new(sequence, PLAYBACK_AHEAD, false, options)?;
+            let first = p.get(frames.start)?.scene.clone();
+            playback = Some((p, frames.start..end));
+            first
         }
-        None => Scene::with_options(crate::demo::demo_volume(), &scene_options),
+        Some(path) if !frame_files(path).is_empty() => {
+            let sequence = Sequence::open(path, &open())?;
+            Arc::new(Scene::with_options(
+                sequence.frame(args.frame)?,
+                &scene_options,
+            ))
+        }
+        Some(path) => {
+            let options = raycaster::format::OpenOptions {
+                volume: u64::from(args.frame),
+                ..open()
+            };
+            let opened = Scene::open(path, &options, &scene_options)?;
+            crate::cli::warn_all(&opened.cache.warnings);
+            Arc::new(opened.scene)
+        }
+        None if args.frame > 0 => {
+            return Err("--frame needs a sequence FILE (the demo volume has one frame)".into());
+        }
+        None => Arc::new(Scene::with_options(
+            crate::demo::demo_volume(),
+            &scene_options,
+        )),
     };
     let sample_type = scene.volume().sample_type();
     let load_ms = ms(load_start.elapsed());
@@ -122,10 +175,22 @@ pub fn run(args: &RenderArgs) -> Result<(), Error> {
             })?)
         }
     };
+    if let Some((playback, range)) = playback {
+        return play(
+            args,
+            renderer.as_mut(),
+            &playback,
+            range,
+            &camera,
+            &tf,
+            &options,
+            load_ms,
+        );
+    }
     if let Some(previews) = args.progressive {
         return crate::progressive_cmd::run(crate::progressive_cmd::Setup {
             renderer,
-            scene: std::sync::Arc::new(scene),
+            scene,
             camera,
             tf,
             options,
@@ -184,6 +249,84 @@ pub fn run(args: &RenderArgs) -> Result<(), Error> {
             height,
             ms(last.stats.time),
             last.stats.samples
+        );
+    }
+    Ok(())
+}
+
+/// Renders the frames `range` of `playback` (`--frames`), writing one PNG
+/// per frame into `--out DIR` and, with `--stats`, the timings as JSON.
+#[allow(clippy::too_many_arguments)]
+fn play(
+    args: &RenderArgs,
+    renderer: &mut dyn Renderer,
+    playback: &Playback,
+    range: std::ops::Range<u32>,
+    camera: &Camera,
+    tf: &TransferFunction,
+    options: &RenderOptions,
+    load_ms: f64,
+) -> Result<(), Error> {
+    let dir = match (&args.out, args.stats) {
+        (Some(d), _) => Some(d.clone()),
+        (None, false) => Some(std::path::PathBuf::from("frames")),
+        (None, true) => None,
+    };
+    if let Some(d) = &dir {
+        std::fs::create_dir_all(d).map_err(|e| format!("{}: {e}", d.display()))?;
+    }
+    let n = range.len();
+    let progress = (!args.stats)
+        .then(|| crate::progress::bar("rendering"))
+        .flatten();
+    let (mut decode, mut build, mut render, mut wait) = (vec![], vec![], vec![], vec![]);
+    let (mut rays, mut samples) = (0, 0);
+    let start = Instant::now();
+    for (i, k) in range.clone().enumerate() {
+        let asked = Instant::now();
+        let frame = playback.get(k)?;
+        wait.push(ms(asked.elapsed()));
+        let image = renderer.render(&frame.scene, camera, tf, options)?;
+        decode.push(ms(frame.decode));
+        build.push(ms(frame.build));
+        render.push(ms(image.stats.time));
+        rays += image.stats.rays;
+        samples += image.stats.samples;
+        if let Some(d) = &dir {
+            image.save_png(&d.join(format!("frame_{k:04}.png")))?;
+        }
+        if let Some(p) = &progress {
+            p.report((i + 1) as f32 / n as f32);
+        }
+    }
+    let seconds = start.elapsed().as_secs_f64();
+    let (width, height) = args.size;
+    if args.stats {
+        let stats = PlayStats {
+            width,
+            height,
+            renderer: renderer.name().to_string(),
+            threads: renderer.threads(),
+            frames: n as u32,
+            first_frame: range.start,
+            fps: n as f64 / seconds.max(1e-9),
+            decode_ms_median: median(&decode),
+            build_ms_median: median(&build),
+            render_ms_median: median(&render),
+            wait_ms_median: median(&wait),
+            decode_ms: decode,
+            render_ms: render,
+            load_ms,
+            rays,
+            samples,
+            peak_rss_mb: peak_rss_mb(),
+        };
+        println!("{}", serde_json::to_string(&stats)?);
+    } else if let Some(d) = &dir {
+        eprintln!(
+            "vol_app: wrote {n} frames to {} ({width}x{height}, {:.1} frames/s)",
+            d.display(),
+            n as f64 / seconds.max(1e-9)
         );
     }
     Ok(())

@@ -21,6 +21,33 @@ pub struct RenderStats {
     pub peak_rss_mb: f64,
 }
 
+/// Timings and counters of a `vol_app render --frames` run: frames
+/// decoded ahead on another thread while the renderer draws.
+#[derive(Debug, Serialize)]
+pub struct PlayStats {
+    pub width: u32,
+    pub height: u32,
+    pub renderer: String,
+    pub threads: usize,
+    pub frames: u32,
+    pub first_frame: u32,
+    /// Frames per second over the whole run (decoding overlapped).
+    pub fps: f64,
+    /// Reading and decoding one frame (on the decoder thread).
+    pub decode_ms_median: f64,
+    /// Building a frame's macrocell grid (on the decoder thread).
+    pub build_ms_median: f64,
+    pub render_ms_median: f64,
+    /// Time the renderer waited for a frame to be decoded.
+    pub wait_ms_median: f64,
+    pub decode_ms: Vec<f64>,
+    pub render_ms: Vec<f64>,
+    pub load_ms: f64,
+    pub rays: u64,
+    pub samples: u64,
+    pub peak_rss_mb: f64,
+}
+
 /// The median of `v` (mean of the middle two for an even count).
 pub fn median(v: &[f64]) -> f64 {
     if v.is_empty() {

@@ -578,3 +578,129 @@ fn the_macrocell_cache_is_written_once_and_a_damaged_one_is_a_warning() {
     );
     assert_eq!(std::fs::read(&written[0]).unwrap(), bytes, "not repaired");
 }
+
+/// A directory of three `.vol` frames: balls of radius 4, 6 and 8.
+fn frame_directory(dir: &TempDir) -> PathBuf {
+    let frames = dir.path("frames");
+    std::fs::create_dir_all(&frames).unwrap();
+    for (k, r) in [4.0f32, 6.0, 8.0].into_iter().enumerate() {
+        radial_vol_file(
+            dir,
+            &format!("frames/f{k}.vol"),
+            UVec3::splat(20),
+            VolLayout::Linear,
+            |d| if d < r { 200 } else { 0 },
+        );
+    }
+    frames
+}
+
+#[test]
+fn pack_info_and_render_frames_of_a_sequence() {
+    let dir = TempDir::new("cli-seq");
+    let frames = frame_directory(&dir);
+    let packed = dir.path("balls.vseq");
+    let out = run_ok(
+        vol_app()
+            .arg("pack")
+            .arg(&frames)
+            .arg("-o")
+            .arg(&packed)
+            .args(["--codec", "zstd", "--key-interval", "2", "--json"]),
+    );
+    let report: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
+    assert_eq!(report["frames"], 3);
+    assert!(report["percent"].as_f64().unwrap() < 20.0, "{report}");
+    // Not replaced without --force, and the message says so.
+    assert_one_line_error(
+        &output(vol_app().arg("pack").arg(&frames).arg("-o").arg(&packed)),
+        "--force",
+    );
+    for source in [&frames, &packed] {
+        let out = run_ok(vol_app_on("info", source).arg("--json"));
+        let info: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
+        assert_eq!(info["frames"], 3, "{}", source.display());
+        assert_eq!(info["dims"], serde_json::json!([20, 20, 20]));
+    }
+    // Frame K from the packed file is frame K from the directory.
+    let png = |name: &str| dir.path(name);
+    for k in 0..3 {
+        let k = k.to_string();
+        run_ok(
+            vol_app_on("render", &frames)
+                .args(["--frame", &k, "--size", "40x40", "--out"])
+                .arg(png("d.png")),
+        );
+        run_ok(
+            vol_app_on("render", &packed)
+                .args(["--frame", &k, "--size", "40x40", "--out"])
+                .arg(png("p.png")),
+        );
+        assert_eq!(
+            std::fs::read(png("d.png")).unwrap(),
+            std::fs::read(png("p.png")).unwrap(),
+            "frame {k}"
+        );
+    }
+    // --frames writes one PNG per frame, the same images.
+    let movie = dir.path("movie");
+    run_ok(
+        vol_app_on("render", &packed)
+            .args(["--frames", "1..", "--size", "40x40", "--out"])
+            .arg(&movie),
+    );
+    let mut written: Vec<_> = std::fs::read_dir(&movie)
+        .unwrap()
+        .map(|e| e.unwrap().file_name())
+        .collect();
+    written.sort();
+    assert_eq!(written, ["frame_0001.png", "frame_0002.png"]);
+    assert_eq!(
+        std::fs::read(movie.join("frame_0002.png")).unwrap(),
+        std::fs::read(png("p.png")).unwrap()
+    );
+    let out = run_ok(
+        vol_app_on("render", &packed).args(["--frames", "0..=2", "--size", "40x40", "--stats"]),
+    );
+    let stats: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
+    assert_eq!(stats["frames"], 3);
+    assert_eq!(stats["render_ms"].as_array().unwrap().len(), 3);
+    assert!(stats["fps"].as_f64().unwrap() > 0.0);
+    // Errors: one line each, naming the problem.
+    assert_one_line_error(
+        &output(vol_app_on("render", &packed).args(["--frame", "3"])),
+        "volume 3 asked for, but the file holds 3",
+    );
+    assert_one_line_error(
+        &output(vol_app_on("render", &packed).args(["--frames", "2..5"])),
+        "has 3 frames",
+    );
+    assert_one_line_error(
+        &output(vol_app_on("render", &packed).args(["--frames", "2..1"])),
+        "is empty",
+    );
+    assert_one_line_error(
+        &output(vol_app().arg("render").args(["--frame", "1"])),
+        "needs a sequence",
+    );
+    // A frame of other dimensions in the directory is named.
+    radial_vol_file(
+        &dir,
+        "frames/f3.vol",
+        UVec3::new(20, 20, 19),
+        VolLayout::Linear,
+        |_| 0,
+    );
+    assert_one_line_error(&output(&mut vol_app_on("info", &frames)), "f3.vol");
+    assert_one_line_error(
+        &output(
+            vol_app()
+                .arg("pack")
+                .arg(&frames)
+                .arg("-o")
+                .arg(dir.path("bad.vseq")),
+        ),
+        "frame 3 is 20x20x19",
+    );
+    assert!(!dir.path("bad.vseq").exists());
+}

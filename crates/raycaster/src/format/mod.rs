@@ -18,6 +18,7 @@
 //! | [`nifti`] | NIfTI-1 `.nii`, `.nii.gz`, `.hdr` + `.img` |
 //! | [`dicom`] | a directory (or one file) of a DICOM series |
 //! | [`raw`] | headerless samples described by the caller |
+//! | [`vseq`] | this project's `.vseq` sequence container (frames compressed one by one) |
 //!
 //! [`save::save`] writes any volume as `.vol`, NRRD, NIfTI-1 or raw, the
 //! format chosen by the file name; every writer goes through
@@ -46,6 +47,7 @@ pub mod reader;
 pub mod samples;
 pub mod save;
 pub mod vol;
+pub mod vseq;
 
 use std::path::Path;
 
@@ -55,7 +57,7 @@ pub use raw::RawOptions;
 pub use reader::{Claim, Probe, READERS, Reader, detect, reader_for};
 pub use samples::{Endian, Rescale, SampleLayout};
 
-use crate::error::{Error, Result};
+use crate::error::{Error, FormatError, Result};
 use crate::sample::SampleType;
 use crate::storage::LoadMode;
 use crate::volume::AnyVolume;
@@ -75,6 +77,8 @@ pub enum FileFormat {
     Dicom,
     /// Headerless samples described by [`RawOptions`] (never detected).
     Raw,
+    /// This project's packed sequence of volumes (`.vseq`).
+    Vseq,
 }
 
 impl FileFormat {
@@ -87,6 +91,7 @@ impl FileFormat {
             FileFormat::Nifti => "NIfTI-1",
             FileFormat::Dicom => "DICOM series",
             FileFormat::Raw => "raw",
+            FileFormat::Vseq => ".vseq sequence",
         }
     }
 }
@@ -108,6 +113,26 @@ pub struct OpenOptions {
     /// Told how far a decode that takes time has come (gzip streams, DICOM
     /// slices); mapping a file needs no progress.
     pub progress: Option<Progress>,
+    /// Which 3-D volume of a file that holds several (a 4-D NIfTI or NRRD,
+    /// a packed `.vseq` sequence) to open, from 0; [`VolumeInfo::volumes`]
+    /// says how many there are. Any other index than 0 of a 3-D file is an
+    /// error.
+    pub volume: u64,
+}
+
+/// `index` when the file holds more volumes than that, else the error that
+/// names `path` and the count.
+pub(crate) fn check_volume_index(path: &Path, index: u64, volumes: u64) -> Result<u64> {
+    if index < volumes {
+        Ok(index)
+    } else {
+        Err(Error::format(
+            path,
+            FormatError::Invalid(format!(
+                "volume {index} asked for, but the file holds {volumes} (numbered from 0)"
+            )),
+        ))
+    }
 }
 
 /// A callback that receives the fraction (0 to 1) of a long decode done,
@@ -200,6 +225,9 @@ pub struct VolumeInfo {
     pub orientation: Option<String>,
     /// Anything else the user should know (e.g. "4-D file: volume 1 of 3").
     pub notes: Vec<String>,
+    /// The 3-D volumes the file holds (frames of a 4-D file or a `.vseq`
+    /// sequence; 1 for most files); [`OpenOptions::volume`] picks one.
+    pub volumes: u64,
     /// The imaging modality when the file says (DICOM `Modality`: `CT`,
     /// `MR`, ...), to pick a fitting transfer function.
     pub modality: Option<String>,
@@ -221,6 +249,7 @@ impl VolumeInfo {
             rescale: None,
             orientation: None,
             notes: Vec::new(),
+            volumes: 1,
             modality: None,
             file_bytes,
         }
@@ -239,7 +268,13 @@ pub struct Opened {
 /// Opens a volume file of any supported format, as described in the module
 /// documentation.
 pub fn open_file(path: &Path, options: &OpenOptions) -> Result<Opened> {
-    let opened = reader_for(path, options).and_then(|reader| reader.open(path, options));
+    let opened = reader_for(path, options)
+        .and_then(|reader| reader.open(path, options))
+        .and_then(|opened| {
+            // Readers of 3-D-only formats do not look at the index.
+            check_volume_index(path, options.volume, opened.info.volumes)?;
+            Ok(opened)
+        });
     if let Some(p) = &options.progress {
         // Done (or failed): the reader may have stopped short of its input's
         // end (the first volume of a 4-D file), so say it here.

@@ -21,7 +21,6 @@ use super::samples::{self, Endian, Rescale, SampleLayout};
 use super::{FileFormat, Opened, VolumeInfo};
 use crate::error::{Error, FormatError, Result};
 use crate::sample::SampleType;
-use crate::storage::LoadMode;
 use crate::volume::AxisOrder;
 
 /// Header length in bytes.
@@ -222,11 +221,12 @@ impl super::Reader for NiftiReader {
     }
 
     fn open(&self, path: &Path, options: &super::OpenOptions) -> Result<Opened> {
-        open(path, options.mode, options.progress.as_ref())
+        open(path, options)
     }
 }
 
-fn open(path: &Path, mode: LoadMode, progress: Option<&super::Progress>) -> Result<Opened> {
+fn open(path: &Path, options: &super::OpenOptions) -> Result<Opened> {
+    let (mode, progress) = (options.mode, options.progress.as_ref());
     let file_bytes = super::file_len(path)?;
     let gz = is_compressed(path)?;
     // The header: from the file, or from the start of the gzip stream.
@@ -263,10 +263,12 @@ fn open(path: &Path, mode: LoadMode, progress: Option<&super::Progress>) -> Resu
         ));
     }
     let volumes: i64 = (4..=7).map(|i| (dim_of(i) as i64).max(1)).product();
+    let volumes = volumes as u64;
+    let index = super::check_volume_index(path, options.volume, volumes)?;
     let mut notes = Vec::new();
     if volumes > 1 {
         notes.push(format!(
-            "{ndim}-D file with {volumes} volumes: opened the first"
+            "{ndim}-D file with {volumes} volumes: opened volume {index}"
         ));
     }
     let spacing = Vec3::from_array(std::array::from_fn(|i| {
@@ -291,6 +293,8 @@ fn open(path: &Path, mode: LoadMode, progress: Option<&super::Progress>) -> Resu
     };
     layout.validate(path)?;
     let rescale = h.rescale();
+    // The volumes follow each other (dimensions 4..7 are the slowest).
+    let skip = index.saturating_mul(layout.byte_len(path)?);
 
     let (volume, data_bytes, data_gz) = if h.single_file {
         if !(h.vox_offset.is_finite() && h.vox_offset >= HEADER_LEN as f32) {
@@ -299,7 +303,7 @@ fn open(path: &Path, mode: LoadMode, progress: Option<&super::Progress>) -> Resu
                 format!("vox_offset {} (must be at least 348)", h.vox_offset),
             ));
         }
-        let offset = h.vox_offset as u64;
+        let offset = (h.vox_offset as u64).saturating_add(skip);
         let volume = if gz {
             // The stream is past the header already.
             let data = samples::Stream {
@@ -315,7 +319,7 @@ fn open(path: &Path, mode: LoadMode, progress: Option<&super::Progress>) -> Resu
     } else {
         // The image file is compressed or not whatever the header file is.
         let data_path = image_file_for(path)?;
-        let offset = h.vox_offset.max(0.0) as u64;
+        let offset = (h.vox_offset.max(0.0) as u64).saturating_add(skip);
         let data_bytes = super::file_len(&data_path)?;
         let data_gz = is_compressed(&data_path)?;
         let volume = if data_gz {
@@ -342,6 +346,7 @@ fn open(path: &Path, mode: LoadMode, progress: Option<&super::Progress>) -> Resu
     info.rescale = rescale;
     info.orientation = h.orientation();
     info.notes = notes;
+    info.volumes = volumes;
     Ok(Opened { volume, info })
 }
 

@@ -23,7 +23,6 @@ use super::samples::{self, Endian, SampleLayout};
 use super::{FileFormat, Opened, VolumeInfo};
 use crate::error::{Error, FormatError, Result};
 use crate::sample::SampleType;
-use crate::storage::LoadMode;
 use crate::volume::AxisOrder;
 
 /// The header is text; a file whose first this-many bytes hold no blank line
@@ -62,7 +61,8 @@ pub struct NrrdHeader {
     /// header; plus `byte skip` / `line skip`). `None` for `byte skip: -1`
     /// (the data is the file's last bytes).
     pub data_offset: Option<u64>,
-    /// Volumes along a fourth (slowest) axis; the first is opened.
+    /// Volumes along a fourth (slowest) axis (1 for a 3-D file); one of
+    /// them is opened ([`OpenOptions::volume`](super::OpenOptions::volume)).
     pub extra_volumes: u64,
     /// `space directions` and `space origin` as written, if any.
     pub orientation: Option<String>,
@@ -192,9 +192,7 @@ impl NrrdHeader {
             d => {
                 return Err(unsupported(
                     path,
-                    format!(
-                        "{d}-dimensional data (3-D volumes, or 4-D opened as their first volume)"
-                    ),
+                    format!("{d}-dimensional data (3-D volumes, or 4-D sequences of them)"),
                 ));
             }
         };
@@ -354,33 +352,39 @@ impl super::Reader for NrrdReader {
     }
 
     fn open(&self, path: &Path, options: &super::OpenOptions) -> Result<Opened> {
-        open(path, options.mode, options.progress.as_ref())
+        open(path, options)
     }
 }
 
-fn open(path: &Path, mode: LoadMode, progress: Option<&super::Progress>) -> Result<Opened> {
+fn open(path: &Path, options: &super::OpenOptions) -> Result<Opened> {
+    let (mode, progress) = (options.mode, options.progress.as_ref());
     let h = NrrdHeader::read(path)?;
     let layout = h.layout;
     layout.validate(path)?;
     let bytes = layout.byte_len(path)?;
+    let index = super::check_volume_index(path, options.volume, h.extra_volumes)?;
+    // The volumes follow each other (the fourth axis is the slowest).
+    let skip = index * bytes;
     let data = &h.data_file;
     let data_len = super::file_len(data)?;
     let volume = match h.encoding {
         Encoding::Raw => {
             let offset = match h.data_offset {
                 Some(o) => o,
-                None => data_len.checked_sub(bytes).ok_or_else(|| {
-                    Error::format(
-                        data,
-                        FormatError::WrongLength {
-                            expected: bytes,
-                            found: data_len,
-                            detail: "samples at the end of the file (byte skip -1)".into(),
-                        },
-                    )
-                })?,
+                None => data_len
+                    .checked_sub(bytes.saturating_mul(h.extra_volumes))
+                    .ok_or_else(|| {
+                        Error::format(
+                            data,
+                            FormatError::WrongLength {
+                                expected: bytes.saturating_mul(h.extra_volumes),
+                                found: data_len,
+                                detail: "samples at the end of the file (byte skip -1)".into(),
+                            },
+                        )
+                    })?,
             };
-            samples::from_file(data, offset, &layout, None, mode, false)?
+            samples::from_file(data, offset + skip, &layout, None, mode, false)?
         }
         Encoding::Gzip => {
             use std::io::{Seek, SeekFrom};
@@ -391,7 +395,11 @@ fn open(path: &Path, mode: LoadMode, progress: Option<&super::Progress>) -> Resu
                 .map_err(|e| Error::io(data, e))?;
             let compressed = data_len.saturating_sub(start);
             let counted = super::ProgressReader::new(f, compressed, progress);
-            let stream = samples::Stream::gzip(compressed);
+            let stream = samples::Stream {
+                offset: skip,
+                skip,
+                ..samples::Stream::gzip(compressed)
+            };
             samples::from_reader(data, gzip.decoder(counted), &layout, None, stream)?
         }
     };
@@ -404,9 +412,10 @@ fn open(path: &Path, mode: LoadMode, progress: Option<&super::Progress>) -> Resu
     if data != path {
         info.notes.push(format!("data in {}", data.display()));
     }
+    info.volumes = h.extra_volumes;
     if h.extra_volumes > 1 {
         info.notes.push(format!(
-            "4-D file with {} volumes: opened the first",
+            "4-D file with {} volumes: opened volume {index}",
             h.extra_volumes
         ));
     }

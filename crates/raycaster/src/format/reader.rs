@@ -11,7 +11,7 @@
 
 use std::path::Path;
 
-use super::{FileFormat, OpenOptions, Opened, davis, dicom, nifti, nrrd, raw, vol};
+use super::{FileFormat, OpenOptions, Opened, davis, dicom, nifti, nrrd, raw, vol, vseq};
 use crate::error::{Error, FormatError, Result};
 
 /// How many first bytes of a file a [`Probe`] holds: a whole NIfTI-1 header
@@ -79,6 +79,7 @@ pub static READERS: &[(FileFormat, &dyn Reader)] = &[
     (FileFormat::Dicom, &dicom::DicomReader),
     (FileFormat::Vol, &vol::VolReader),
     (FileFormat::DavisVol, &davis::DavisReader),
+    (FileFormat::Vseq, &vseq::VseqReader),
 ];
 
 /// The reader for `path`: the raw reader when `options.raw` describes the
@@ -141,7 +142,7 @@ fn unrecognised(path: &Path, ext: &str) -> Error {
             format!("a .{ext} file has no header: describe it with --raw-dims and --raw-type")
         }
         other => format!(
-            "extension .{other}; supported: .vol, .nrrd, .nhdr, .nii, .nii.gz, .dcm or a DICOM directory, raw with --raw-dims/--raw-type"
+            "extension .{other}; supported: .vol, .nrrd, .nhdr, .nii, .nii.gz, .dcm or a DICOM directory, .vseq, raw with --raw-dims/--raw-type"
         ),
     };
     Error::format(path, FormatError::Unrecognised(why))

@@ -396,6 +396,7 @@ fn load(
                     p.set(Phase::Opening, Some(f));
                     w();
                 })),
+                volume: 0,
             };
             let opened = Scene::open(path, &options, &scene_options).map_err(|e| e.to_string())?;
             let mut info = opened.info;
