@@ -44,7 +44,23 @@ Generators and the options they use (defaults in brackets):
              is the majority of ray-crossing parities along x, y and z, so
              small holes do not flip it. Render it with --mode iso --iso 0.
              --shape, --layout and --seed are not used.
-Sizes of sphere, sdf, metaballs and noise are in units of the finest spacing,
+  plume      a time series of --frames [1] f32 frames mimicking a rocket
+             engine's exhaust: a hot jet leaves a nozzle (diameter
+             --object-size [0.4 x half the smaller of the y and z extents])
+             in the middle of the x = 0 face, its front crossing the volume in about
+             100 frames; it widens and cools downstream, snakes, sheds puffs,
+             and --octaves [4] of noise carried with the flow stir it. Values
+             in --value-range [0.99,1.5]: ambient gas just above LO (~1.0),
+             the hottest plume near HI. Consecutive frames are close, and
+             frame k depends only on k, --seed, --dims, --shape and these
+             options, so a shorter run gives the first frames of a longer
+             one. -o DIR/ (or any name without a volume extension) writes
+             DIR/frame_0000.nrrd, frame_0001.nrrd, ... (raw f32 NRRD, name
+             order = frame order); DIR must be empty or new unless --force,
+             which also removes older frame_*.nrrd files beyond the new
+             count. One frame may also go to a .nrrd, .nii or .nii.gz file.
+             --layout, --sample and --n-of-shapes are not used.
+Sizes of sphere, sdf, metaballs, noise and plume are in units of the finest spacing,
 so objects stay round in world space whatever --shape is.
 
 Layouts: linear (z fastest) or bricked (alias z): cubic bricks of --block-size
@@ -53,7 +69,12 @@ B in 2..=255 overlapping by one voxel (the .vol format in the README).
 The same arguments and --seed give the same bytes, whatever the thread count;
 without --seed a random seed is used and printed. The file is written under a
 temporary name in the same directory and renamed when complete; Ctrl-C or an
-error leaves no file behind.
+error leaves no file behind (plume: each frame so, and an error or Ctrl-C
+removes the frames already written).
+
+Example (150 frames of a simulated exhaust plume, 1.2 GiB):
+  vol_gen --dims 128,128,128 --generator plume --frames 150 --seed 1 \\
+      -o volumes/plume/
 
 Example (a distance field of a mesh):
   vol_gen --dims 129,129,101 --generator mesh --mesh tests/data/bunny.ply \\
@@ -81,7 +102,8 @@ pub enum LayoutArg {
     name = "vol_gen",
     version,
     about = "Generates test volumes in the .vol format (26-byte header + u8 samples, linear or bricked), \
-             and signed distance fields of triangle meshes (f32 NRRD or NIfTI).",
+             signed distance fields of triangle meshes (f32 NRRD or NIfTI) and a time series \
+             (--generator plume --frames N: a directory of f32 NRRD frames).",
     after_help = AFTER_HELP
 )]
 pub struct Cli {
@@ -132,13 +154,22 @@ pub struct Cli {
     #[arg(long, value_name = "V")]
     pub sample: Option<u8>,
 
-    /// Noise octaves, 1..=16
+    /// Noise octaves, 1..=16 (noise, plume)
     #[arg(long, value_name = "N")]
     pub octaves: Option<u32>,
 
     /// SDF band: distance in voxels over which values go from 128 to 0 or 255
     #[arg(long, value_name = "VOXELS")]
     pub band: Option<f32>,
+
+    /// Frames of the time series (plume only): -o names a directory
+    #[arg(long, value_name = "N", default_value_t = 1,
+          value_parser = clap::value_parser!(u32).range(1..))]
+    pub frames: u32,
+
+    /// Value range of --generator plume: ambient just above LO, hottest HI
+    #[arg(long, value_name = "LO,HI", value_parser = parse_range)]
+    pub value_range: Option<(f32, f32)>,
 
     /// Triangle mesh for --generator mesh (.obj, .ply or .stl)
     #[arg(long, value_name = "FILE")]
@@ -184,6 +215,8 @@ pub struct Config {
     pub mesh: Option<PathBuf>,
     /// `--margin`, in voxels.
     pub margin: u32,
+    /// `--frames`: 1 except for a time series.
+    pub frames: u32,
 }
 
 impl Config {
@@ -218,6 +251,19 @@ impl Config {
             }
             _ => {}
         }
+        if cli.frames > 1 && cli.generator != GeneratorKind::Plume {
+            return Err(Error::Usage(format!(
+                "--frames {}: only --generator plume makes a time series; {} writes one volume",
+                cli.frames,
+                cli.generator.name()
+            )));
+        }
+        if cli.value_range.is_some() && cli.generator != GeneratorKind::Plume {
+            return Err(Error::Usage(format!(
+                "--value-range is for --generator plume, not {}",
+                cli.generator.name()
+            )));
+        }
         let seed_was_random = cli.seed.is_none() && cli.generator != GeneratorKind::Mesh;
         let seed = cli.seed.unwrap_or_else(|| fastrand::u64(..));
         Ok(Config {
@@ -232,6 +278,7 @@ impl Config {
                 sample: cli.sample,
                 octaves: cli.octaves,
                 band: cli.band,
+                value_range: cli.value_range,
             },
             seed_was_random,
             output: cli.output_file,
@@ -240,6 +287,7 @@ impl Config {
             threads: cli.threads.map(usize::from),
             mesh: cli.mesh,
             margin: cli.margin,
+            frames: cli.frames,
         })
     }
 }
@@ -275,6 +323,23 @@ pub fn parse_dims(s: &str) -> std::result::Result<UVec3, String> {
         }
     }
     Ok(UVec3::from_array(d))
+}
+
+/// `LO,HI`, finite with LO < HI.
+pub fn parse_range(s: &str) -> std::result::Result<(f32, f32), String> {
+    let (lo, hi) = s
+        .split_once(',')
+        .ok_or_else(|| format!("expected LO,HI, got '{s}'"))?;
+    let parse = |p: &str| {
+        p.trim()
+            .parse::<f32>()
+            .map_err(|e| format!("'{}': {e}", p.trim()))
+    };
+    let (lo, hi) = (parse(lo)?, parse(hi)?);
+    if !(lo.is_finite() && hi.is_finite() && lo < hi) {
+        return Err(format!("{lo},{hi}: need finite LO < HI"));
+    }
+    Ok((lo, hi))
 }
 
 /// `SX,SY,SZ`, each finite and > 0.

@@ -1,7 +1,9 @@
 //! `vol_gen`: a fast, parallel generator of test volumes in the `.vol` format
 //! (26-byte header, linear or bricked samples), with the command line the
 //! README describes; and of signed distance fields of triangle meshes
-//! (`--generator mesh`, f32 NRRD or NIfTI, see [`mesh`]).
+//! (`--generator mesh`, f32 NRRD or NIfTI, see [`mesh`]); and of a synthetic
+//! time series (`--generator plume --frames N`, a directory of f32 NRRD
+//! frames, see [`plume`] and [`sequence`]).
 //!
 //! The design: a *sample generator*
 //! gives any voxel its value ([`generators`]), an *order* decides the sequence
@@ -17,6 +19,8 @@
 //! | [`cli`] | arguments, validation into a [`cli::Config`] |
 //! | [`generators`] | the six voxel generators and spatial binning of objects |
 //! | [`mesh`] | `--generator mesh`: mesh readers, BVH, signed distance field (f32, NRRD/NIfTI) |
+//! | [`plume`] | `--generator plume`: an evolving jet, frame by frame (f32) |
+//! | [`sequence`] | writing frames: a directory of NRRD files |
 //! | [`order`] | file order: batches and parallel pieces, linear or bricked |
 //! | [`writer`] | pipelined, atomic writing |
 //! | [`progress`] | the progress bar |
@@ -32,7 +36,9 @@ pub mod error;
 pub mod generators;
 pub mod mesh;
 pub mod order;
+pub mod plume;
 pub mod progress;
+pub mod sequence;
 pub mod signal;
 pub mod writer;
 
@@ -175,6 +181,10 @@ pub fn run(cli: Cli) -> Result<Summary> {
         // f32 samples computed whole, then saved as NRRD/NIfTI: not the
         // streamed u8 `.vol` pipeline below.
         return mesh::field::run(&config);
+    }
+    if config.generator == generators::GeneratorKind::Plume {
+        // A time series of f32 frames, each computed whole and saved.
+        return sequence::run(&config);
     }
     let job = Job::prepare(config)?;
     let c = job.config();

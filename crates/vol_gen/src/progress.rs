@@ -1,4 +1,4 @@
-//! The progress bar: bytes written, rate and ETA on stderr, hidden when stderr
+//! The progress bar: bytes written (voxels, frames), rate and ETA on stderr, hidden when stderr
 //! is not a terminal or with `--quiet`.
 
 use std::io::IsTerminal;
@@ -27,6 +27,15 @@ impl Progress {
             total,
             visible,
             "{spinner} [{elapsed_precise}] {wide_bar} {human_pos}/{human_len} voxels {per_sec} ETA {eta}",
+        )
+    }
+
+    /// A bar for `total` frames of a time series (`--generator plume`).
+    pub fn frames(total: u64, visible: bool) -> Self {
+        Self::with_template(
+            total,
+            visible,
+            "{spinner} [{elapsed_precise}] {wide_bar} {human_pos}/{human_len} frames {per_sec} ETA {eta}",
         )
     }
 

@@ -38,6 +38,8 @@ pub enum GeneratorKind {
     Metaballs,
     /// Signed distance field (f32, negative inside) of the triangle mesh --mesh
     Mesh,
+    /// A time series (f32, --frames N): a hot jet with puffs and drifting turbulence
+    Plume,
 }
 
 impl GeneratorKind {
@@ -51,6 +53,7 @@ impl GeneratorKind {
             GeneratorKind::Sdf => "sdf",
             GeneratorKind::Metaballs => "metaballs",
             GeneratorKind::Mesh => "mesh",
+            GeneratorKind::Plume => "plume",
         }
     }
 }
@@ -75,6 +78,8 @@ pub struct Setup {
     pub octaves: Option<u32>,
     /// `--band` (sdf), in voxels.
     pub band: Option<f32>,
+    /// `--value-range LO,HI` (plume).
+    pub value_range: Option<(f32, f32)>,
 }
 
 impl Setup {
@@ -89,6 +94,7 @@ impl Setup {
             sample: None,
             octaves: None,
             band: None,
+            value_range: None,
         }
     }
 
@@ -210,6 +216,10 @@ pub fn build(kind: GeneratorKind, setup: &Setup) -> Result<Box<dyn Field>, Strin
             return Err(
                 "--generator mesh writes f32 samples; it is run by mesh::field::run".into(),
             );
+        }
+        // f32 frames of a time series: `plume::run` writes them.
+        GeneratorKind::Plume => {
+            return Err("--generator plume writes f32 frames; it is run by plume::run".into());
         }
     })
 }

@@ -41,7 +41,7 @@ pub struct Noise {
 
 /// SplitMix64's finaliser: a cheap, well-mixed 64-bit hash.
 #[inline(always)]
-fn mix(mut h: u64) -> u64 {
+pub(crate) fn mix(mut h: u64) -> u64 {
     h = (h ^ (h >> 30)).wrapping_mul(0xbf58_476d_1ce4_e5b9);
     h = (h ^ (h >> 27)).wrapping_mul(0x94d0_49bb_1331_11eb);
     h ^ (h >> 31)
@@ -49,7 +49,7 @@ fn mix(mut h: u64) -> u64 {
 
 /// The lattice value at `(x, y, z)`, in `[0, 1)`.
 #[inline(always)]
-fn lattice(seed: u64, x: i32, y: i32, z: i32) -> f32 {
+pub(crate) fn lattice(seed: u64, x: i32, y: i32, z: i32) -> f32 {
     let h = mix(seed ^ (x as u32 as u64).wrapping_mul(0x9e37_79b9_7f4a_7c15));
     let h = mix(h ^ (y as u32 as u64).wrapping_mul(0xc2b2_ae3d_27d4_eb4f));
     let h = mix(h ^ (z as u32 as u64).wrapping_mul(0x1656_67b1_9e37_79f9));
@@ -123,9 +123,9 @@ impl Field for Noise {
     }
 }
 
-/// Integer part and fraction of a non-negative coordinate.
+/// Integer part and fraction of a coordinate (floor, so also below 0).
 #[inline(always)]
-fn split(p: f32) -> (i32, f32) {
+pub(crate) fn split(p: f32) -> (i32, f32) {
     let i = p.floor();
     (i as i32, p - i)
 }
