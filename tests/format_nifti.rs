@@ -190,10 +190,26 @@ fn nifti_4d_opens_the_first_volume() {
         let opened = open(&p);
         check_opened(name, &opened, &vols[0], FileFormat::Nifti, SampleType::I16);
         assert!(
-            has_note(&opened, &["3 volumes", "first"]),
+            has_note(&opened, &["3 volumes", "opened volume 0"]),
             "{name}: notes {:?}",
             opened.info.notes
         );
+        assert_eq!(opened.info.volumes, 3);
+        // Every volume, raw and through gzip, by its index.
+        for (k, want) in vols.iter().enumerate() {
+            let options = raycaster::format::OpenOptions {
+                volume: k as u64,
+                ..Default::default()
+            };
+            let v = raycaster::format::open_file(&p, &options).expect("volume k");
+            check_opened(name, &v, want, FileFormat::Nifti, SampleType::I16);
+        }
+        let options = raycaster::format::OpenOptions {
+            volume: 3,
+            ..Default::default()
+        };
+        let e = raycaster::format::open_file(&p, &options).unwrap_err();
+        assert!(e.to_string().contains("the file holds 3"), "{e}");
     }
     // dim[0] = 3 ignores dim[4..]: one volume, no note.
     let mut h3 = h.clone();

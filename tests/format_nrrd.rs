@@ -7,7 +7,9 @@ use std::path::Path;
 
 use common::TempDir;
 use common::file_bytes::{gzip, nrrd_header, with_field};
-use common::volumes::{SYN_DIMS, SYN_SPACING, check_opened, has_note, le_bytes, open, synthetic};
+use common::volumes::{
+    SYN_DIMS, SYN_SPACING, assert_same_volume, check_opened, has_note, le_bytes, open, synthetic,
+};
 use raycaster::format::samples;
 use raycaster::format::{Endian, FileFormat, Opened};
 use raycaster::prelude::*;
@@ -171,8 +173,18 @@ fn nrrd_detached_headers_skips_spacings_and_4d() {
     let p = dir.file("4d-slowest.nrrd", &file);
     let opened = check("4-D, 3 volumes", &p, &want);
     assert!(
-        has_note(&opened, &["3 volumes", "first"]),
+        has_note(&opened, &["3 volumes", "opened volume 0"]),
         "notes: {:?}",
         opened.info.notes
     );
+    assert_eq!(opened.info.volumes, 3);
+    // The others by their index.
+    for (k, other) in others.iter().enumerate() {
+        let options = raycaster::format::OpenOptions {
+            volume: k as u64 + 1,
+            ..Default::default()
+        };
+        let v = raycaster::format::open_file(&p, &options).expect("volume k");
+        assert_same_volume(&format!("4-D volume {}", k + 1), &v.volume, other);
+    }
 }

@@ -97,6 +97,10 @@ pub struct PackArgs {
     /// Do not byte-shuffle chunks before compressing them.
     #[arg(long)]
     pub no_shuffle: bool,
+    /// Store each sample as its difference from its neighbour along x (the
+    /// delta filter; helps smooth data, hurts noisy data).
+    #[arg(long)]
+    pub delta: bool,
     /// Replace OUT if it exists.
     #[arg(long)]
     pub force: bool,

@@ -30,6 +30,7 @@ pub fn run(args: &PackArgs) -> Result<(), Error> {
         key_interval: args.key_interval,
         chunk_bytes: args.chunk_kib as usize * 1024,
         shuffle: !args.no_shuffle,
+        delta: args.delta,
     };
     let progress = crate::progress::bar("packing");
     let report = pack(

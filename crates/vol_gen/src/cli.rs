@@ -58,7 +58,9 @@ Generators and the options they use (defaults in brackets):
              DIR/frame_0000.nrrd, frame_0001.nrrd, ... (raw f32 NRRD, name
              order = frame order); DIR must be empty or new unless --force,
              which also removes older frame_*.nrrd files beyond the new
-             count. One frame may also go to a .nrrd, .nii or .nii.gz file.
+             count. -o FILE.vseq packs every frame into one .vseq sequence
+             (LZ4, lossless; repack with `vol_app pack` for zstd or f16).
+             One frame may also go to a .nrrd, .nii or .nii.gz file.
              --layout, --sample and --n-of-shapes are not used.
 Sizes of sphere, sdf, metaballs, noise and plume are in units of the finest spacing,
 so objects stay round in world space whatever --shape is.

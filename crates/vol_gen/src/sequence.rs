@@ -11,9 +11,11 @@
 //! then `frame_*.nrrd` files beyond the new count are removed so that the
 //! directory holds exactly the new sequence.
 //!
-//! [`Output`] decides what the output path means; a packed sequence
-//! container would be one more variant of it, fed by the same
-//! [`Plume::samples`] calls.
+//! A name ending in `.vseq` writes the frames packed into one file (the
+//! library's container, LZ4, lossless; `vol_app pack` repacks it with
+//! another codec or half floats), written atomically as a whole.
+//!
+//! [`Output`] decides what the output path means.
 
 use std::path::{Path, PathBuf};
 use std::time::Instant;
@@ -38,6 +40,8 @@ pub enum Output {
     File(PathBuf),
     /// A directory of `frame_NNNN.nrrd` files.
     Directory(PathBuf),
+    /// One packed `.vseq` file.
+    Packed(PathBuf),
 }
 
 /// What `path` means for a sequence of `frames` frames: a directory when it
@@ -56,10 +60,7 @@ pub fn output(path: &Path, frames: u32) -> Result<Output> {
         .map(|e| e.to_string_lossy().to_ascii_lowercase())
         .unwrap_or_default();
     if ext == "vseq" {
-        return Err(Error::Usage(format!(
-            "{text}: vol_gen cannot write .vseq yet; write a directory of frames \
-             (-o DIR/) and pack it with `vol_app pack DIR -o FILE.vseq`"
-        )));
+        return Ok(Output::Packed(path.to_path_buf()));
     }
     match output_format(path, &SaveOptions::default()) {
         Ok(OutputFormat::Nrrd(_) | OutputFormat::Nifti { .. }) if frames == 1 => {
@@ -149,6 +150,16 @@ pub fn run(config: &Config) -> Result<Summary> {
     let need = (frame_bytes + HEADER_BYTES).saturating_mul(u64::from(frames));
     let start = Instant::now();
     let (paths, created): (Vec<PathBuf>, Option<&Path>) = match &target {
+        Output::Packed(file) => {
+            crate::check_output(file, config.force, need)?;
+            if config.seed_was_random {
+                eprintln!(
+                    "vol_gen: seed {} (pass --seed {} to repeat this sequence)",
+                    config.setup.seed, config.setup.seed
+                );
+            }
+            return write_packed(config, &plume, file, start);
+        }
         Output::File(file) => {
             crate::check_output(file, config.force, need)?;
             (vec![file.clone()], None)
@@ -191,7 +202,7 @@ pub fn run(config: &Config) -> Result<Summary> {
         .map(|p| std::fs::metadata(p).map_or(frame_bytes, |m| m.len()))
         .sum();
     let shown = match &target {
-        Output::File(f) | Output::Directory(f) => f.clone(),
+        Output::File(f) | Output::Directory(f) | Output::Packed(f) => f.clone(),
     };
     if !config.quiet {
         let d = config.header.dims;
@@ -208,6 +219,54 @@ pub fn run(config: &Config) -> Result<Summary> {
     Ok(Summary {
         path: shown,
         bytes: total,
+        seconds,
+    })
+}
+
+/// Writes every frame into one `.vseq` file (LZ4, lossless), computing each
+/// frame as the packer asks for it.
+fn write_packed(config: &Config, plume: &Plume, file: &Path, start: Instant) -> Result<Summary> {
+    use raycaster::format::vseq::{PackOptions, pack};
+    signal::install();
+    let frames = config.frames;
+    let progress = Progress::frames(u64::from(frames), !config.quiet);
+    let report = pack(
+        file,
+        frames,
+        |k| {
+            let samples = plume
+                .samples(k, &signal::interrupted)
+                .map_err(raycaster::Error::InvalidVolume)?;
+            let volume = plume
+                .volume(samples)
+                .map_err(raycaster::Error::InvalidVolume)?;
+            progress.advance(1);
+            Ok(volume)
+        },
+        &PackOptions::default(),
+        None,
+    );
+    progress.finish();
+    if signal::interrupted() {
+        return Err(Error::Interrupted);
+    }
+    let report = report?;
+    let seconds = start.elapsed().as_secs_f64();
+    if !config.quiet {
+        let d = config.header.dims;
+        eprintln!(
+            "vol_gen: wrote {} ({frames} frames of {}x{}x{} plume, f32, LZ4: {} = {:.1} % of the samples) in {seconds:.2} s",
+            file.display(),
+            d.x,
+            d.y,
+            d.z,
+            bytes(report.file_bytes),
+            report.percent()
+        );
+    }
+    Ok(Summary {
+        path: file.to_path_buf(),
+        bytes: report.file_bytes,
         seconds,
     })
 }
@@ -308,11 +367,14 @@ mod tests {
             output(Path::new("p.nii.gz"), 1).unwrap(),
             Output::File(PathBuf::from("p.nii.gz"))
         );
+        assert_eq!(
+            output(Path::new("p.vseq"), 3).unwrap(),
+            Output::Packed(PathBuf::from("p.vseq"))
+        );
         for (path, frames, expected) in [
             ("p.nrrd", 2, "directory"),
             ("p.vol", 1, "float format"),
             ("p.raw", 1, "float format"),
-            ("p.vseq", 3, ".vseq"),
             ("", 3, "empty"),
         ] {
             let e = output(Path::new(path), frames).unwrap_err().to_string();

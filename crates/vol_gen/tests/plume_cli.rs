@@ -170,7 +170,7 @@ fn bad_requests_are_one_line_and_write_nothing() {
     let dir = TempDir::new("plume-bad");
     let out = dir.path("out");
     let file = dir.path("f.nrrd");
-    let cases: [(String, &Path, &str); 8] = [
+    let cases: [(String, &Path, &str); 7] = [
         (
             "--dims 8,8,8 -g noise --frames 3".into(),
             &out,
@@ -190,11 +190,6 @@ fn bad_requests_are_one_line_and_write_nothing() {
             "--dims 8,8,8 -g plume".into(),
             &dir.path("f.vol"),
             "float format",
-        ),
-        (
-            "--dims 8,8,8 -g plume --frames 2".into(),
-            &dir.path("f.vseq"),
-            ".vseq",
         ),
         (
             "--dims 8,8,8 -g plume --frames 2 --value-range 1.5,1".into(),
@@ -287,4 +282,37 @@ fn sigint_removes_the_frames_written() {
         "vol_gen: error: interrupted; no file was written"
     );
     assert!(dir.entries().is_empty(), "left behind: {:?}", dir.entries());
+}
+
+#[test]
+fn a_vseq_output_holds_the_directory_frames() {
+    let dir = TempDir::new("plume-vseq");
+    let frames = dir.path("frames");
+    let packed = dir.path("plume.vseq");
+    let args = "--dims 12,10,8 -g plume --frames 4 --seed 5 --shape 1,1,2";
+    gen_ok(args, &frames);
+    gen_ok(args, &packed);
+    let open = |p: &Path| raycaster::sequence::Sequence::open(p, &Default::default()).unwrap();
+    let (a, b) = (open(&frames), open(&packed));
+    assert_eq!(b.frames(), 4);
+    assert!(b.packed().is_some());
+    for k in 0..4 {
+        let file = frames.join(format!("frame_{k:04}.nrrd"));
+        let (dims, spacing, want) = values(&file);
+        let v = b.frame(k).unwrap();
+        assert_eq!((v.grid().dims, v.grid().spacing), (dims, spacing));
+        let got: Vec<f32> = (0..dims.z)
+            .flat_map(|z| {
+                (0..dims.y).flat_map(move |y| (0..dims.x).map(move |x| UVec3::new(x, y, z)))
+            })
+            .map(|p| v.value(p))
+            .collect();
+        assert!(got == want, "frame {k}");
+        assert_eq!(a.frame(k).unwrap().grid().dims, dims);
+    }
+    // Not replaced without --force.
+    let a = gen_args(args, &packed);
+    let result = run(&a.iter().map(String::as_str).collect::<Vec<_>>());
+    assert!(!result.status.success());
+    assert!(stderr(&result).contains("--force"), "{}", stderr(&result));
 }

@@ -94,8 +94,9 @@ pub(super) fn unshuffle(input: &[u8], width: usize, out: &mut [u8]) {
             let (b0, rest) = input.split_at(n);
             let (b1, rest) = rest.split_at(n);
             let (b2, b3) = rest.split_at(n);
-            for (i, o) in out.chunks_exact_mut(4).enumerate() {
-                o.copy_from_slice(&[b0[i], b1[i], b2[i], b3[i]]);
+            let planes = b0.iter().zip(b1).zip(b2).zip(b3);
+            for (o, (((&a, &b), &c), &d)) in out.chunks_exact_mut(4).zip(planes) {
+                o.copy_from_slice(&[a, b, c, d]);
             }
         }
         _ => {

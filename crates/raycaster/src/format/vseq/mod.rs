@@ -11,7 +11,8 @@
 //!     10     1  sample type of the frames: 0 u8, 1 i8, 2 u16, 3 i16, 4 f32
 //!     11     1  storage: 0 = the sample type, 1 = IEEE half floats (f32 frames only; lossy)
 //!     12     1  codec: 0 none, 1 LZ4 (block format), 2 zstd
-//!     13     1  filters: bit 0 = byte shuffle within each chunk
+//!     13     1  filters: bit 0 = byte shuffle within each chunk,
+//!               bit 1 = delta: each sample minus the one before it in its chunk
 //!     14     2  reserved (0)
 //!     16    12  dimensions x, y, z (u32)
 //!     28    12  spacing x, y, z (f32)
@@ -102,6 +103,9 @@ pub struct Header {
     pub codec: Codec,
     /// Whether chunks are byte-shuffled before compression.
     pub shuffle: bool,
+    /// Whether each chunk's samples are stored as differences from the
+    /// sample before them (the delta filter).
+    pub delta: bool,
     /// Samples per axis.
     pub dims: UVec3,
     /// Spacing per axis.
@@ -149,7 +153,7 @@ impl Header {
             StoredAs::F16 => 1,
         };
         h[12] = self.codec.code();
-        h[13] = u8::from(self.shuffle);
+        h[13] = u8::from(self.shuffle) | (u8::from(self.delta) << 1);
         for i in 0..3 {
             h[16 + 4 * i..20 + 4 * i].copy_from_slice(&self.dims[i].to_le_bytes());
             h[28 + 4 * i..32 + 4 * i].copy_from_slice(&self.spacing[i].to_le_bytes());
@@ -193,7 +197,7 @@ impl Header {
             c => return Err(format!("unknown storage code {c}")),
         };
         let codec = Codec::from_code(h[12]).ok_or(format!("unknown codec code {}", h[12]))?;
-        if h[13] > 1 {
+        if h[13] > 3 {
             return Err(format!("unknown filter bits {:#x}", h[13]));
         }
         let dims = UVec3::new(u32_at(16), u32_at(20), u32_at(24));
@@ -203,6 +207,7 @@ impl Header {
             stored,
             codec,
             shuffle: h[13] & 1 == 1,
+            delta: h[13] & 2 == 2,
             dims,
             spacing,
             frames: u32_at(40),
@@ -414,6 +419,9 @@ impl VseqFile {
         if h.stored == StoredAs::F16 {
             encoding += " of f16";
         }
+        if h.delta {
+            encoding += ", delta";
+        }
         if h.shuffle {
             encoding += ", shuffled";
         }
@@ -440,56 +448,74 @@ impl VseqFile {
                 self.header.frames
             )));
         }
-        let stored = self.stored_frame(k)?;
-        let n = stored.len() / self.header.stored_width();
-        let grid = self.grid();
         let storage = match self.header.stored {
-            StoredAs::F16 => Storage::from_vec(f16_to_f32(&stored)),
+            StoredAs::F16 => {
+                let mut bits = self.buffer()?;
+                self.stored_into(k, &mut bits)?;
+                Storage::from_vec(f16_to_f32(&bits))
+            }
             StoredAs::Samples => {
-                struct Cast<'a>(&'a [u8], usize);
-                impl crate::sample::SampleTypeVisitor for Cast<'_> {
-                    type Output = Storage;
-                    fn visit<S: Sample>(self) -> Storage {
-                        let mut v = vec![S::LOWEST; self.1];
-                        bytemuck::cast_slice_mut::<S, u8>(&mut v).copy_from_slice(self.0);
+                // The stored bytes are the samples' little-endian bytes:
+                // decode straight into the volume's array.
+                struct Decode<'a>(&'a VseqFile, u32);
+                impl crate::sample::SampleTypeVisitor for Decode<'_> {
+                    type Output = Result<Storage>;
+                    fn visit<S: Sample>(self) -> Result<Storage> {
+                        let Decode(file, k) = self;
+                        let n = file.stored_len() / std::mem::size_of::<S>();
+                        let mut v: Vec<S> = zeroed(n).ok_or_else(|| file.too_large())?;
+                        file.stored_into(k, bytemuck::cast_slice_mut::<S, u8>(&mut v))?;
                         from_le(&mut v);
-                        Storage::from_vec(v)
+                        Ok(Storage::from_vec(v))
                     }
                 }
-                self.header.sample.visit(Cast(&stored, n))
+                self.header.sample.visit(Decode(self, k))?
             }
         };
-        AnyVolume::linear(grid, storage, AxisOrder::XFast)
+        AnyVolume::linear(self.grid(), storage, AxisOrder::XFast)
     }
 
-    /// The stored bytes of frame `k` (differences undone), from the key
-    /// frame at or before it, or from the last frame decoded when that is
-    /// on the way.
-    fn stored_frame(&self, k: u32) -> Result<Arc<Vec<u8>>> {
+    /// A zeroed buffer for one frame's stored bytes.
+    fn buffer(&self) -> Result<Vec<u8>> {
+        zeroed(self.stored_len()).ok_or_else(|| self.too_large())
+    }
+
+    fn too_large(&self) -> Error {
+        Error::TooLarge {
+            path: self.path.clone(),
+            what: format!("a frame of {} bytes", self.stored_len()),
+        }
+    }
+
+    /// Decodes the stored bytes of frame `k` (differences undone) into
+    /// `out`: directly in a file of key frames only; else from the key
+    /// frame at or before `k`, or from the last frame decoded when that is
+    /// on the way, keeping frame `k` for the next call.
+    fn stored_into(&self, k: u32, out: &mut [u8]) -> Result<()> {
+        if self.header.key_interval == 1 {
+            return self.decode_stored(k, None, out);
+        }
         let key = k - k % self.header.key_interval;
         let cached = self.last.lock().clone();
         let (mut next, mut prev) = match cached {
-            Some((j, bytes)) if j == k => return Ok(bytes),
+            Some((j, bytes)) if j == k => {
+                out.copy_from_slice(&bytes);
+                return Ok(());
+            }
             Some((j, bytes)) if (key..k).contains(&j) => (j + 1, Some(bytes)),
             _ => (key, None),
         };
-        let bytes = self.stored_len();
-        let mut out = Arc::new(Vec::new());
         while next <= k {
-            let mut buf = zeroed(bytes).ok_or_else(|| Error::TooLarge {
-                path: self.path.clone(),
-                what: format!("a frame of {bytes} bytes"),
-            })?;
+            let mut buf = self.buffer()?;
             self.decode_stored(next, prev.as_deref().map(Vec::as_slice), &mut buf)?;
-            out = Arc::new(buf);
-            prev = Some(out.clone());
+            prev = Some(Arc::new(buf));
             next += 1;
         }
-        // Only a file with difference frames gains from keeping a frame.
-        if self.header.key_interval > 1 {
-            *self.last.lock() = Some((k, out.clone()));
+        if let Some(bytes) = prev {
+            out.copy_from_slice(&bytes);
+            *self.last.lock() = Some((k, bytes));
         }
-        Ok(out)
+        Ok(())
     }
 
     fn stored_len(&self) -> usize {
@@ -534,17 +560,34 @@ impl VseqFile {
             return Err(fail(format!("{} bytes after the last chunk", body.len())));
         }
         let difference = e.difference;
-        let (codec, shuffle) = (self.header.codec, self.header.shuffle);
+        let (codec, shuffle, delta) = (self.header.codec, self.header.shuffle, self.header.delta);
         out.par_chunks_mut(chunk_bytes)
             .zip(packed.par_iter())
             .enumerate()
             .try_for_each(|(i, (out, packed))| {
                 if shuffle && width > 1 {
-                    let mut scratch = vec![0u8; out.len()];
-                    codec::decompress(codec, packed, &mut scratch)?;
-                    codec::unshuffle(&scratch, width, out);
+                    if codec == Codec::None {
+                        if packed.len() != out.len() {
+                            return Err(format!(
+                                "a stored chunk holds {} bytes, expected {}",
+                                packed.len(),
+                                out.len()
+                            ));
+                        }
+                        codec::unshuffle(packed, width, out);
+                    } else {
+                        SCRATCH.with_borrow_mut(|scratch| {
+                            scratch.resize(out.len(), 0);
+                            codec::decompress(codec, packed, scratch)?;
+                            codec::unshuffle(scratch, width, out);
+                            Ok::<(), String>(())
+                        })?;
+                    }
                 } else {
                     codec::decompress(codec, packed, out)?;
+                }
+                if delta {
+                    prefix_sum_wrapping(out, width);
                 }
                 if difference {
                     let prev = prev.ok_or("a difference frame without its predecessor")?;
@@ -557,13 +600,79 @@ impl VseqFile {
     }
 }
 
+thread_local! {
+    /// A decoding thread's buffer for one decompressed, still shuffled
+    /// chunk.
+    static SCRATCH: std::cell::RefCell<Vec<u8>> = const { std::cell::RefCell::new(Vec::new()) };
+}
+
+/// Undoes the delta filter in place: sample i becomes the wrapping sum of
+/// samples 0..=i (little-endian unsigned integers of `width` bytes).
+fn prefix_sum_wrapping(out: &mut [u8], width: usize) {
+    match width {
+        1 => {
+            let mut acc = 0u8;
+            for o in out.iter_mut() {
+                acc = acc.wrapping_add(*o);
+                *o = acc;
+            }
+        }
+        2 => {
+            let mut acc = 0u16;
+            for o in out.chunks_exact_mut(2) {
+                acc = acc.wrapping_add(u16::from_le_bytes([o[0], o[1]]));
+                o.copy_from_slice(&acc.to_le_bytes());
+            }
+        }
+        _ => {
+            let mut acc = 0u32;
+            for o in out.chunks_exact_mut(4) {
+                acc = acc.wrapping_add(u32::from_le_bytes([o[0], o[1], o[2], o[3]]));
+                o.copy_from_slice(&acc.to_le_bytes());
+            }
+        }
+    }
+}
+
+/// The delta filter in place: each sample minus the one before it
+/// (wrapping), the first kept.
+fn delta_wrapping(out: &mut [u8], width: usize) {
+    match width {
+        1 => {
+            let mut prev = 0u8;
+            for o in out.iter_mut() {
+                let v = *o;
+                *o = v.wrapping_sub(prev);
+                prev = v;
+            }
+        }
+        2 => {
+            let mut prev = 0u16;
+            for o in out.chunks_exact_mut(2) {
+                let v = u16::from_le_bytes([o[0], o[1]]);
+                o.copy_from_slice(&v.wrapping_sub(prev).to_le_bytes());
+                prev = v;
+            }
+        }
+        _ => {
+            let mut prev = 0u32;
+            for o in out.chunks_exact_mut(4) {
+                let v = u32::from_le_bytes([o[0], o[1], o[2], o[3]]);
+                o.copy_from_slice(&v.wrapping_sub(prev).to_le_bytes());
+                prev = v;
+            }
+        }
+    }
+}
+
 /// `n` zero bytes, or `None` when the memory cannot be had (a header may
 /// claim any size; the allocation must fail softly, not abort).
-fn zeroed(n: usize) -> Option<Vec<u8>> {
-    let mut v = Vec::new();
-    v.try_reserve_exact(n).ok()?;
-    v.resize(n, 0);
-    Some(v)
+fn zeroed<S: bytemuck::Zeroable + bytemuck::Pod>(n: usize) -> Option<Vec<S>> {
+    let mut probe: Vec<S> = Vec::new();
+    probe.try_reserve_exact(n).ok()?;
+    drop(probe);
+    // Zeroed by the allocator: fresh pages come zeroed, not written twice.
+    Some(bytemuck::zeroed_vec(n))
 }
 
 /// Samples per frame, `None` on overflow.

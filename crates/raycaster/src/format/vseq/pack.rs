@@ -32,6 +32,9 @@ pub struct PackOptions {
     pub chunk_bytes: usize,
     /// Byte-shuffle each chunk before compressing it.
     pub shuffle: bool,
+    /// Store each sample of a chunk as its difference from the sample
+    /// before it (smooth data: small numbers, which compress better).
+    pub delta: bool,
 }
 
 impl Default for PackOptions {
@@ -43,6 +46,11 @@ impl Default for PackOptions {
             key_interval: 1,
             chunk_bytes: 1 << 20,
             shuffle: true,
+            // On the plume sequence the delta filter made f16 frames larger
+            // (zstd 9.0 → 9.7 %, LZ4 16.6 → 20.2 %): the shuffle already
+            // groups the equal high bytes, and the differences of noisy low
+            // bits wrap into high ones.
+            delta: false,
         }
     }
 }
@@ -110,6 +118,7 @@ pub fn pack(
         stored,
         codec: options.codec,
         shuffle: options.shuffle,
+        delta: options.delta,
         dims: grid.dims,
         spacing: grid.spacing,
         frames,
@@ -273,6 +282,15 @@ fn compress_frame(
     let chunks: Vec<Vec<u8>> = stored
         .par_chunks(chunk_bytes)
         .map(|c| {
+            let delta;
+            let c = if options.delta {
+                let mut d = c.to_vec();
+                super::delta_wrapping(&mut d, width);
+                delta = d;
+                &delta[..]
+            } else {
+                c
+            };
             if options.shuffle && width > 1 {
                 let mut s = vec![0u8; c.len()];
                 codec::shuffle(c, width, &mut s);

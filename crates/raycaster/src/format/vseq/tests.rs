@@ -63,12 +63,18 @@ fn every_codec_and_type_round_trips_frame_by_frame() {
     ] {
         let frames = frames_of(ty, 5, dims);
         for codec in [Codec::None, Codec::Lz4, Codec::Zstd] {
-            for (key_interval, shuffle) in [(1, true), (3, true), (2, false)] {
-                let path = temp(&format!("rt-{ty}-{codec}-{key_interval}.vseq"));
+            for (key_interval, shuffle, delta) in [
+                (1, true, true),
+                (3, true, false),
+                (2, false, true),
+                (1, false, false),
+            ] {
+                let path = temp(&format!("rt-{ty}-{codec}-{key_interval}-{delta}.vseq"));
                 let options = PackOptions {
                     codec,
                     key_interval,
                     shuffle,
+                    delta,
                     // Several chunks per frame, the last one short.
                     chunk_bytes: 97 * ty.size(),
                     ..PackOptions::default()
