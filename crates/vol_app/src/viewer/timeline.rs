@@ -235,7 +235,9 @@ impl ViewerApp {
                 t.step(-1, s.play_loop);
             }
             let label = if t.playing { "Pause" } else { "Play" };
-            if ui.button(label).clicked() {
+            // As wide either way, so that the slider does not shift.
+            let play = egui::Button::new(label).min_size(egui::vec2(52.0, 0.0));
+            if ui.add(play).clicked() {
                 t.play(!t.playing, s.play_loop, s.play_fps);
             }
             if ui.button("+1").on_hover_text("Next frame (M)").clicked() {
