@@ -964,6 +964,8 @@ fn settings_persist_through_eframe_storage() {
     };
     app_mut(&mut h).settings_mut().lights = vec![light];
     app_mut(&mut h).settings_mut().shadows = true;
+    app_mut(&mut h).settings_mut().play_loop = false;
+    app_mut(&mut h).settings_mut().play_fps = 24.0;
     let mut storage = MemStorage::default();
     eframe::App::save(app_mut(&mut h), &mut storage);
     let restored = Settings::load(Some(&storage));
@@ -973,6 +975,8 @@ fn settings_persist_through_eframe_storage() {
     assert!(!restored.progressive);
     assert!(restored.shadows);
     assert_eq!(restored.lights, vec![light]);
+    assert!(!restored.play_loop);
+    assert_eq!(restored.play_fps, 24.0);
     assert_eq!(restored.last_dir.as_deref(), path.parent());
     assert_eq!(Settings::load(None), Settings::default());
 }
@@ -994,4 +998,201 @@ fn long_file_names_do_not_widen_the_panel() {
         canvas.left() < 400.0,
         "the left panel grew: canvas {canvas:?}"
     );
+}
+
+/// A packed sequence of `frames` 24³ u8 frames: a ball of value 100 (inside
+/// the `shapes` TF's bands) that moves along x from frame to frame.
+fn sequence_file(dir: &TempDir, name: &str, frames: u32) -> PathBuf {
+    let path = dir.path(name);
+    let grid = raycaster::volume::Grid::new(UVec3::splat(24), Vec3::ONE);
+    let frame = |k: u32| {
+        let c = Vec3::new(6.0 + 3.0 * k as f32, 11.5, 11.5);
+        raycaster::volume::AnyVolume::from_fn(grid, move |p| {
+            if (p.as_vec3() - c).length() < 5.0 {
+                100u8
+            } else {
+                0
+            }
+        })
+    };
+    raycaster::format::vseq::pack(&path, frames, |k| Ok(frame(k)), &Default::default(), None)
+        .unwrap();
+    path
+}
+
+fn sequence_harness(path: &Path, settings: Settings) -> H {
+    let mut h = harness(
+        StartOptions {
+            file: Some(path.to_path_buf()),
+            tf_preset: Some("shapes".into()),
+            ..Default::default()
+        },
+        settings,
+    );
+    settle(&mut h);
+    h
+}
+
+/// The number of the sequence frame on screen (from 0).
+fn frame_index(a: &ViewerApp) -> u32 {
+    a.timeline().expect("a timeline").current().index
+}
+
+/// Steps until frame `k` is on screen and rendered.
+fn show_frame(h: &mut H, k: u32) {
+    step_until(h, &format!("frame {k}"), |a| frame_index(a) == k);
+    settle(h);
+}
+
+fn image(a: &ViewerApp) -> Vec<u8> {
+    a.last_frame().expect("a frame").frame.rgb.clone()
+}
+
+#[test]
+fn a_sequence_shows_a_timeline_that_steps_with_buttons_and_keys() {
+    let dir = TempDir::new("sequence");
+    let path = sequence_file(&dir, "moving.vseq", 5);
+    let mut h = sequence_harness(&path, quick_settings());
+    let a = app(&h);
+    assert!(a.error().is_none(), "{:?}", a.error());
+    assert_eq!(a.timeline().unwrap().frames(), 5);
+    assert_eq!(frame_index(a), 0);
+    assert!(distinct_colours(a) > 10);
+    for label in ["Frame 1/5", "−1", "+1", "Loop"] {
+        h.get_by_label(label);
+    }
+    h.get_by_label("Play");
+    h.get_by_label_contains("decode");
+    h.check_accessibility();
+    let (camera, tf, first) = (*a.camera(), a.settings().tf.clone(), image(a));
+
+    // +1: the next frame, rendered with the same camera and TF.
+    h.get_by_label("+1").click();
+    show_frame(&mut h, 1);
+    h.get_by_label("Frame 2/5");
+    let a = app(&h);
+    assert!(frame_is_current(a));
+    assert_ne!(image(a), first, "the frame on screen did not change");
+    assert!(Arc::ptr_eq(
+        &a.last_request().unwrap().scene,
+        &a.volume().unwrap().scene
+    ));
+    assert_eq!(*a.camera(), camera);
+    assert_eq!(a.settings().tf, tf);
+    let second = image(a);
+
+    // M and N, as in the seed's viewer.
+    h.key_press(egui::Key::M);
+    show_frame(&mut h, 2);
+    h.get_by_label("Frame 3/5");
+    h.key_press(egui::Key::N);
+    h.key_press(egui::Key::N);
+    show_frame(&mut h, 0);
+    assert_eq!(image(app(&h)), first);
+    // −1 from the first frame wraps to the last while looping.
+    h.get_by_label("−1").click();
+    show_frame(&mut h, 4);
+    h.get_by_label("Frame 5/5");
+    assert_ne!(image(app(&h)), second);
+}
+
+#[test]
+fn playing_advances_the_frames_and_stops_at_the_end_without_loop() {
+    let dir = TempDir::new("play");
+    let path = sequence_file(&dir, "moving.vseq", 4);
+    let settings = Settings {
+        play_fps: 30.0,
+        play_loop: false,
+        ..quick_settings()
+    };
+    let mut h = sequence_harness(&path, settings);
+    h.get_by_label("Play").click();
+    h.step();
+    assert!(app(&h).timeline().unwrap().is_playing());
+    h.step();
+    h.get_by_label("Pause");
+    // Every frame is shown, in order, until the last.
+    let mut seen = vec![0];
+    let start = Instant::now();
+    while app(&h).timeline().unwrap().is_playing() {
+        h.step();
+        let k = frame_index(app(&h));
+        if seen.last() != Some(&k) {
+            seen.push(k);
+        }
+        assert!(start.elapsed() < TIMEOUT, "playing did not end: {seen:?}");
+        std::thread::sleep(Duration::from_millis(3));
+    }
+    assert_eq!(seen, [0, 1, 2, 3]);
+    settle(&mut h);
+    h.get_by_label("Frame 4/4");
+    h.get_by_label("Play");
+
+    // Looping: past the last frame to the first again; then pause.
+    h.get_by_label("Loop").click();
+    h.step();
+    h.get_by_label("Play").click();
+    step_until(&mut h, "the loop to start over", |a| frame_index(a) == 1);
+    h.get_by_label("Pause").click();
+    h.step();
+    assert!(!app(&h).timeline().unwrap().is_playing());
+    settle(&mut h);
+    assert!(app(&h).settings().play_loop);
+}
+
+#[test]
+fn a_folder_of_frames_is_a_sequence_and_a_single_volume_has_no_timeline() {
+    let dir = TempDir::new("frames_dir");
+    let (mut h, _) = open_file(&dir);
+    assert!(app(&h).timeline().is_none());
+    assert!(h.query_by_label("+1").is_none());
+    assert!(h.query_by_label("Play").is_none());
+
+    let frames = dir.path("frames");
+    std::fs::create_dir_all(&frames).unwrap();
+    for (k, r) in [4.0f32, 8.0, 12.0].into_iter().enumerate() {
+        let name = format!("frames/f{k}.vol");
+        radial_vol_file(&dir, &name, UVec3::splat(30), VolLayout::Linear, |d| {
+            if d < r { 100 } else { 0 }
+        });
+    }
+    drop_file(&mut h, &frames);
+    assert_eq!(app(&h).timeline().unwrap().frames(), 3);
+    h.get_by_label("Frame 1/3");
+    h.key_press(egui::Key::M);
+    show_frame(&mut h, 1);
+    h.get_by_label("Frame 2/3");
+
+    // Back to one volume: the timeline goes.
+    drop_file(&mut h, &dir.path("ball.vol"));
+    assert!(app(&h).timeline().is_none());
+    assert!(h.query_by_label("+1").is_none());
+}
+
+#[test]
+fn a_corrupt_frame_is_an_error_line_not_a_panic() {
+    let dir = TempDir::new("corrupt_frame");
+    let path = sequence_file(&dir, "moving.vseq", 3);
+    let entry = raycaster::format::vseq::VseqFile::open(&path)
+        .unwrap()
+        .index()[1];
+    let mut bytes = std::fs::read(&path).unwrap();
+    let mid = (entry.offset + entry.len / 2) as usize;
+    bytes[mid] ^= 0xff;
+    std::fs::write(&path, bytes).unwrap();
+    let mut h = sequence_harness(&path, quick_settings());
+    h.get_by_label("+1").click();
+    step_until(&mut h, "the frame's error", |a| {
+        a.timeline().unwrap().error().is_some()
+    });
+    h.step();
+    let a = app(&h);
+    let e = a.timeline().unwrap().error().unwrap().to_string();
+    assert!(e.contains("Frame 2"), "{e}");
+    assert_eq!(frame_index(a), 0, "the first frame stays on screen");
+    h.get_by_label_contains("Frame 2:");
+    // Stepping goes on past the bad frame.
+    h.get_by_label("+1").click();
+    show_frame(&mut h, 2);
+    assert!(app(&h).timeline().unwrap().error().is_none());
 }

@@ -22,6 +22,7 @@ use super::progressive::Progressive;
 use super::render_link::{RenderLink, RenderRequest, RenderedFrame};
 use super::state::Settings;
 use super::tf_editor::TfEditor;
+use super::timeline::Timeline;
 
 /// How the viewer starts.
 #[derive(Debug, Clone, Default)]
@@ -60,6 +61,8 @@ pub struct ViewerApp {
     pub(super) ctx: egui::Context,
     pub(super) settings: Settings,
     pub(super) volume: Option<Volume>,
+    /// The player of a sequence of several frames; `None` for one volume.
+    pub(super) timeline: Option<Timeline>,
     pub(super) loading: Option<LoadJob>,
     /// The start options, until they have been applied to the first volume.
     start: Option<StartOptions>,
@@ -102,6 +105,7 @@ impl ViewerApp {
             ),
             settings,
             volume: None,
+            timeline: None,
             loading: None,
             start: None,
             link,
@@ -178,6 +182,11 @@ impl ViewerApp {
     /// The volume on screen.
     pub fn volume(&self) -> Option<&Volume> {
         self.volume.as_ref()
+    }
+
+    /// The timeline, when the volume on screen is a sequence of frames.
+    pub fn timeline(&self) -> Option<&Timeline> {
+        self.timeline.as_ref()
     }
 
     /// True while a volume is loading.
@@ -290,6 +299,7 @@ impl ViewerApp {
         self.poll_dialogs();
         self.poll_loading();
         self.poll_frames(ui.ctx());
+        self.poll_timeline();
         if ui.input_mut(|i| i.consume_key(egui::Modifiers::COMMAND, egui::Key::O)) {
             self.show_dialog(Purpose::OpenVolume);
         }
@@ -301,6 +311,9 @@ impl ViewerApp {
                 egui::ScrollArea::vertical().show(ui, |ui| self.left_panel(ui));
             });
         egui::Panel::bottom("status").show(ui, |ui| self.status_line(ui));
+        if self.timeline.is_some() {
+            egui::Panel::bottom("timeline").show(ui, |ui| self.timeline_bar(ui));
+        }
         egui::CentralPanel::default().show(ui, |ui| self.canvas(ui));
     }
 
@@ -376,6 +389,7 @@ impl ViewerApp {
             scene,
             info,
             histogram,
+            timeline,
         } = loaded;
         let sample_type = info.sample_type;
         let s = &mut self.settings;
@@ -424,6 +438,7 @@ impl ViewerApp {
         self.camera = OrbitCamera::framing(&scene.grid().bounds(), self.canvas_aspect);
         // Frame costs learned on the previous volume say nothing of this one.
         self.progressive.reset();
+        self.timeline = timeline;
         self.volume = Some(Volume {
             scene,
             info,

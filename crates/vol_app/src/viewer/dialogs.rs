@@ -91,7 +91,9 @@ impl Dialogs {
                         .add_filter("Volumes", VOLUME_EXTENSIONS)
                         .add_filter("All files", &["*"])
                         .pick_file(),
-                    Purpose::OpenFolder => d.set_title("Open DICOM series folder").pick_folder(),
+                    Purpose::OpenFolder => d
+                        .set_title("Open a DICOM series or a folder of frames")
+                        .pick_folder(),
                     Purpose::LoadTf => d
                         .set_title("Load transfer function")
                         .add_filter("Transfer function (JSON)", &["json"])

@@ -10,11 +10,15 @@ use std::time::{Duration, Instant};
 
 use crossbeam_channel::{Receiver, TryRecvError};
 use glam::{UVec3, Vec3};
+use raycaster::format::FileFormat;
 use raycaster::prelude::*;
+use raycaster::sequence::{Playback, Sequence, frame_files};
 use raycaster::storage::StorageKind;
 
+use super::timeline::Timeline;
+
 /// File extensions the library reads (for the file dialog's filter).
-pub const VOLUME_EXTENSIONS: &[&str] = &["vol", "nrrd", "nhdr", "nii", "gz", "dcm"];
+pub const VOLUME_EXTENSIONS: &[&str] = &["vol", "nrrd", "nhdr", "nii", "gz", "dcm", "vseq"];
 
 /// Where a volume comes from.
 #[derive(Debug, Clone, PartialEq)]
@@ -239,6 +243,8 @@ pub struct Loaded {
     pub info: VolumeInfo,
     /// Value histogram for the TF editor.
     pub histogram: Histogram,
+    /// The player, when the file is a sequence of several frames.
+    pub timeline: Option<Timeline>,
 }
 
 /// The stage a load is in.
@@ -385,6 +391,7 @@ fn load(
             ..Default::default()
         }
     };
+    let mut timeline = None;
     let (scene, name, path, file) = match source {
         Source::File(path, mode, raw) => {
             // Decoding (gzip, DICOM slices) reports its fraction.
@@ -398,23 +405,36 @@ fn load(
                 })),
                 volume: 0,
             };
-            let opened = Scene::open(path, &options, &scene_options).map_err(|e| e.to_string())?;
-            let mut info = opened.info;
-            // A cache that could not be read or written is worth a line
-            // among the volume's notes (and on stderr), not a failed load.
-            for w in opened.cache.warnings {
-                eprintln!("vol_app: warning: {w}");
-                info.notes.push(w);
-            }
-            (
-                opened.scene,
-                file_name(path),
-                Some(path.clone()),
-                Some(info),
-            )
+            let packed =
+                raw.is_none() && raycaster::format::detect(path).ok() == Some(FileFormat::Vseq);
+            let (scene, info, player) = if packed || !frame_files(path).is_empty() {
+                open_sequence(path, &options)?
+            } else {
+                let opened =
+                    Scene::open(path, &options, &scene_options).map_err(|e| e.to_string())?;
+                let mut info = opened.info;
+                // A cache that could not be read or written is worth a line
+                // among the volume's notes (and on stderr), not a failed load.
+                for w in opened.cache.warnings {
+                    eprintln!("vol_app: warning: {w}");
+                    info.notes.push(w);
+                }
+                if info.volumes > 1 {
+                    // A 4-D file: its volumes are the frames (the first is
+                    // read again, by the player).
+                    open_sequence(path, &options)?
+                } else {
+                    (Arc::new(opened.scene), info, None)
+                }
+            };
+            timeline = player;
+            (scene, file_name(path), Some(path.clone()), Some(info))
         }
         Source::Demo => (
-            Scene::with_options(crate::demo::demo_volume(), &scene_options),
+            Arc::new(Scene::with_options(
+                crate::demo::demo_volume(),
+                &scene_options,
+            )),
             "built-in demo".to_string(),
             None,
             None,
@@ -423,7 +443,12 @@ fn load(
     let volume = scene.volume();
     let (sample_type, layout, storage) =
         (volume.sample_type(), volume.layout(), volume.storage_kind());
-    let value_range = scene.value_range();
+    // A packed sequence knows the range of all its frames: the TF fitted
+    // to it holds for every frame.
+    let value_range = timeline
+        .as_ref()
+        .and_then(|t| t.value_range())
+        .unwrap_or_else(|| scene.value_range());
     progress.set(Phase::Histogram, Some(0.0));
     wake();
     let mut last_wake = Instant::now();
@@ -448,9 +473,53 @@ fn load(
             load_time: start.elapsed(),
             file,
         },
-        scene: Arc::new(scene),
+        scene,
         histogram,
+        timeline,
     })
+}
+
+/// Frames a sequence keeps decoded ahead: about [`AHEAD_BYTES`] of them,
+/// 2 to 8.
+fn frames_ahead(sequence: &Sequence) -> u32 {
+    let dims = sequence.info().dims.as_dvec3();
+    let bytes = dims.element_product() * sequence.sample_type().size() as f64;
+    (AHEAD_BYTES as f64 / bytes.max(1.0)).clamp(2.0, 8.0) as u32
+}
+
+/// Memory the frames decoded ahead of a sequence may take.
+const AHEAD_BYTES: u64 = 256 << 20;
+
+/// Opens the sequence at `path` and decodes its first frame; its timeline
+/// when it has several frames (one frame is a plain volume).
+fn open_sequence(
+    path: &Path,
+    options: &raycaster::format::OpenOptions,
+) -> Result<(Arc<Scene>, raycaster::format::VolumeInfo, Option<Timeline>), String> {
+    // Later frames decode on the player's thread, not this load's.
+    let options = raycaster::format::OpenOptions {
+        progress: None,
+        ..options.clone()
+    };
+    let sequence = Arc::new(Sequence::open(path, &options).map_err(|e| e.to_string())?);
+    let info = sequence.info().clone();
+    let scene_options = raycaster::scene::SceneOptions {
+        cache: raycaster::accel::cache::CachePolicy::Off,
+        ..Default::default()
+    };
+    // The window wraps around the end whether or not the viewer loops:
+    // playing again from the last frame starts at the first, decoded.
+    let playback = Playback::new(
+        sequence.clone(),
+        frames_ahead(&sequence),
+        true,
+        scene_options,
+    )
+    .map_err(|e| e.to_string())?;
+    let first = playback.get(0).map_err(|e| e.to_string())?;
+    let scene = first.scene.clone();
+    let timeline = (sequence.frames() > 1).then(|| Timeline::new(playback, first));
+    Ok((scene, info, timeline))
 }
 
 fn file_name(path: &Path) -> String {

@@ -11,6 +11,7 @@
 //! | [`loading`] | opening volumes on a background thread, with progress |
 //! | [`render_link`] | the renderer on its own thread, newest request wins |
 //! | [`progressive`] | previews within a time budget while the view changes, refinement ¼ → ½ → full when still |
+//! | [`timeline`] | a sequence's player: play/pause, loop, speed, step ±1 (N/M), scrub |
 //! | [`dialogs`] | native file dialogs on a background thread |
 //!
 //! [`ViewerApp`] runs without a window too: give it an [`egui::Context`] and
@@ -26,6 +27,7 @@ pub mod progressive;
 pub mod render_link;
 pub mod state;
 pub mod tf_editor;
+pub mod timeline;
 
 pub use app::{StartOptions, ViewerApp};
 pub use state::Settings;

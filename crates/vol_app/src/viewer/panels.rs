@@ -39,7 +39,9 @@ impl ViewerApp {
             }
             if ui
                 .add_enabled(!self.dialogs.is_open(), egui::Button::new("Folder…"))
-                .on_hover_text("Open a DICOM series: the folder of its slices")
+                .on_hover_text(
+                    "Open a folder: a DICOM series (its slices) or a sequence (one file per frame)",
+                )
                 .clicked()
             {
                 self.show_dialog(Purpose::OpenFolder);
@@ -51,7 +53,7 @@ impl ViewerApp {
         let l = ui.label("Path:");
         ui.horizontal(|ui| {
             let edit = egui::TextEdit::singleline(&mut self.path_input)
-                .hint_text("volume file or DICOM folder");
+                .hint_text("volume file, sequence or folder");
             let size = egui::vec2(ui.available_width() - 60.0, ui.spacing().interact_size.y);
             let edit = ui.add_sized(size, edit).labelled_by(l.id);
             let enter = edit.lost_focus() && ui.input(|i| i.key_pressed(egui::Key::Enter));

@@ -152,6 +152,10 @@ pub struct Settings {
     pub fixed_size: u32,
     /// Read files into RAM instead of memory-mapping them.
     pub load_in_ram: bool,
+    /// A sequence's playback starts over after its last frame.
+    pub play_loop: bool,
+    /// Playback speed of a sequence, in frames per second.
+    pub play_fps: f32,
 }
 
 impl Default for Settings {
@@ -177,6 +181,8 @@ impl Default for Settings {
             resolution: ResolutionChoice::Canvas,
             fixed_size: 700,
             load_in_ram: false,
+            play_loop: true,
+            play_fps: 10.0,
         }
     }
 }
@@ -246,6 +252,12 @@ impl Settings {
         } else {
             defaults.step_factor
         };
+        let fps = super::timeline::FPS_RANGE;
+        self.play_fps = if self.play_fps.is_finite() {
+            self.play_fps.clamp(*fps.start(), *fps.end())
+        } else {
+            defaults.play_fps
+        };
         if self.last_dir.as_ref().is_some_and(|d| !d.is_dir()) {
             self.last_dir = None;
         }
@@ -283,6 +295,7 @@ mod tests {
             threads: 10_000,
             fixed_size: 1,
             step_factor: f32::NAN,
+            play_fps: f32::INFINITY,
             tf: TransferFunction {
                 interpolation: Default::default(),
                 points: vec![],
@@ -293,6 +306,7 @@ mod tests {
         assert_eq!(bad.threads, max_threads());
         assert_eq!(bad.fixed_size, 64);
         assert_eq!(bad.step_factor, DEFAULT_STEP_FACTOR);
+        assert_eq!(bad.play_fps, 10.0);
         let far = Settings {
             step_factor: 100.0,
             ..Settings::default()
