@@ -77,16 +77,50 @@ pub fn bernstein(p: &Poly, n: usize, len: f64) -> Poly {
 /// within `tol`; `Some(0)` when `p(0) >= 0`. See the module docs for what
 /// may be missed (two roots closer than `tol`).
 pub fn first_root(p: &Poly, n: usize, len: f64, tol: f64) -> Option<f64> {
-    let b = bernstein(p, n, len);
-    search(&b, n, 0.0, len, tol.max(len * 1e-12))
-}
-
-fn search(b: &Poly, n: usize, a: f64, w: f64, tol: f64) -> Option<f64> {
-    if b[..=n].iter().all(|&c| c < 0.0) {
+    // A cheap bound first: on [0, len], p <= p0 + Σ max(p_k, 0)·len^k. On
+    // the short intervals between the events of many balls it is usually
+    // enough to rule a root out.
+    let mut upper = 0.0;
+    for k in (1..=n).rev() {
+        upper = (upper + p[k].max(0.0)) * len;
+    }
+    if p[0] < 0.0 && p[0] + upper < 0.0 {
         return None;
     }
+    let b = bernstein(p, n, len);
+    search(p, &b, n, 0.0, len, tol.max(len * 1e-12))
+}
+
+/// Sign changes in the Bernstein coefficients (zeros skipped): an upper
+/// bound on the roots in the interval, exact when 0 or 1 (Descartes' rule
+/// for the Bernstein basis).
+#[inline]
+fn sign_changes(b: &Poly, n: usize) -> u32 {
+    let mut changes = 0;
+    let mut prev = 0.0f64;
+    for &c in &b[..=n] {
+        if c != 0.0 {
+            if prev != 0.0 && (c > 0.0) != (prev > 0.0) {
+                changes += 1;
+            }
+            prev = c;
+        }
+    }
+    changes
+}
+
+/// The first root of `p` on `[a, a + w]`, whose Bernstein coefficients are
+/// `b`, with `p(a) < 0` unless it is the first call.
+fn search(p: &Poly, b: &Poly, n: usize, a: f64, w: f64, tol: f64) -> Option<f64> {
     if b[0] >= 0.0 {
         return Some(a);
+    }
+    match sign_changes(b, n) {
+        // p(a) < 0 and no sign change: p <= 0 on the interval.
+        0 => return None,
+        // Exactly one root, p(a) < 0 < p(a + w): refine it.
+        1 if b[n] > 0.0 => return Some(refine(p, n, a, a + w, tol)),
+        _ => {}
     }
     if w <= tol {
         // A sign change between the leaf's ends: interpolate.
@@ -94,7 +128,52 @@ fn search(b: &Poly, n: usize, a: f64, w: f64, tol: f64) -> Option<f64> {
     }
     let (left, right) = split(b, n);
     let h = 0.5 * w;
-    search(&left, n, a, h, tol).or_else(|| search(&right, n, a + h, h, tol))
+    search(p, &left, n, a, h, tol).or_else(|| search(p, &right, n, a + h, h, tol))
+}
+
+/// The one root of `p` in `[lo, hi]` (`p(lo) < 0 < p(hi)`) to within
+/// `tol`: regula falsi with the Illinois modification, the bracket kept.
+fn refine(p: &Poly, n: usize, mut lo: f64, mut hi: f64, tol: f64) -> f64 {
+    let mut f_lo = eval(p, n, lo);
+    let mut f_hi = eval(p, n, hi);
+    if !(f_lo < 0.0 && f_hi > 0.0) {
+        // Rounding disagrees with the Bernstein signs: bisect on them.
+        f_lo = f_lo.min(-f64::MIN_POSITIVE);
+        f_hi = f_hi.max(f64::MIN_POSITIVE);
+    }
+    let mut side = 0i8;
+    for _ in 0..100 {
+        if hi - lo <= tol {
+            break;
+        }
+        let mut x = (lo * f_hi - hi * f_lo) / (f_hi - f_lo);
+        if !(x > lo && x < hi) {
+            x = 0.5 * (lo + hi);
+        }
+        let fx = eval(p, n, x);
+        if fx >= 0.0 {
+            hi = x;
+            f_hi = fx;
+            if side == 1 {
+                f_lo *= 0.5;
+            }
+            side = 1;
+        } else {
+            lo = x;
+            f_lo = fx;
+            if side == -1 {
+                f_hi *= 0.5;
+            }
+            side = -1;
+        }
+        if fx == 0.0 {
+            return x;
+        }
+    }
+    // The root is in [lo, hi], narrower than tol (or p is flat to rounding
+    // there): interpolate.
+    let f = f_lo / (f_lo - f_hi);
+    lo + (hi - lo) * f.clamp(0.0, 1.0)
 }
 
 /// de Casteljau at the midpoint: the Bernstein coefficients of both halves.

@@ -13,7 +13,7 @@
 //! active). The first root in an interval is isolated with Bernstein bounds
 //! ([`poly::first_root`]), to `1e-4·R_min`.
 
-use std::cmp::Ordering;
+use std::cmp::Reverse;
 use std::collections::BinaryHeap;
 
 use glam::{DVec3, Vec3, Vec4};
@@ -24,35 +24,35 @@ use super::tiles::FrameBall;
 use crate::geometry::Ray;
 use crate::integrator::Phong;
 
-/// A ray's entry into or exit from a ball.
-#[derive(Debug, Clone, Copy)]
-struct Event {
-    t: f64,
-    /// Index into the ray's `met` list.
-    slot: u32,
-    exit: bool,
-}
+/// A ray's entry into or exit from a ball, as one integer ordered like
+/// `(t, exit before entry, slot)`: `t >= 0`, whose bits order as the
+/// numbers do, in the high 64 bits; below them `!exit` and the slot (an
+/// index into the ray's `met` list). Popped smallest first.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, PartialOrd, Ord)]
+struct Event(u128);
 
-impl PartialEq for Event {
-    fn eq(&self, other: &Self) -> bool {
-        self.cmp(other) == Ordering::Equal
+impl Event {
+    #[inline]
+    fn new(t: f64, slot: u32, exit: bool) -> Self {
+        debug_assert!(t >= 0.0);
+        // +0.0 for −0.0, so that the bits order as the numbers.
+        let t = t + 0.0;
+        Event(((t.to_bits() as u128) << 64) | ((!exit as u128) << 32) | slot as u128)
     }
-}
-impl Eq for Event {}
-impl PartialOrd for Event {
-    fn partial_cmp(&self, other: &Self) -> Option<Ordering> {
-        Some(self.cmp(other))
+
+    #[inline]
+    fn t(self) -> f64 {
+        f64::from_bits((self.0 >> 64) as u64)
     }
-}
-impl Ord for Event {
-    /// Reversed, so that `BinaryHeap` pops the earliest event first (exits
-    /// before entries at equal `t`, then by slot: a total order).
-    fn cmp(&self, other: &Self) -> Ordering {
-        other
-            .t
-            .total_cmp(&self.t)
-            .then(other.exit.cmp(&self.exit).reverse())
-            .then(other.slot.cmp(&self.slot))
+
+    #[inline]
+    fn slot(self) -> u32 {
+        self.0 as u32
+    }
+
+    #[inline]
+    fn exit(self) -> bool {
+        (self.0 >> 32) & 1 == 0
     }
 }
 
@@ -68,7 +68,7 @@ struct Met {
 /// Per-thread buffers reused from ray to ray.
 #[derive(Debug, Default)]
 pub struct Scratch {
-    heap: BinaryHeap<Event>,
+    heap: BinaryHeap<Reverse<Event>>,
     met: Vec<Met>,
 }
 
@@ -120,7 +120,7 @@ pub fn first_hit(p: &RayParams<'_>, ray: &Ray, candidates: &[u32], s: &mut Scrat
             let k = candidates[next];
             let fb = &p.balls[k as usize];
             if let Some(e) = s.heap.peek()
-                && fb.t_lo > e.t
+                && fb.t_lo > e.0.t()
             {
                 break;
             }
@@ -138,26 +138,18 @@ pub fn first_hit(p: &RayParams<'_>, ray: &Ray, candidates: &[u32], s: &mut Scrat
             }
             let slot = s.met.len() as u32;
             s.met.push(Met { ball: k, b, h2 });
-            s.heap.push(Event {
-                t: t0.max(t_cur),
-                slot,
-                exit: false,
-            });
-            s.heap.push(Event {
-                t: t1,
-                slot,
-                exit: true,
-            });
+            s.heap.push(Reverse(Event::new(t0.max(t_cur), slot, false)));
+            s.heap.push(Reverse(Event::new(t1, slot, true)));
         }
-        let Some(ev) = s.heap.pop() else {
+        let Some(Reverse(ev)) = s.heap.pop() else {
             return RayResult {
                 t: None,
                 met: s.met.len() as u32,
             };
         };
-        // The interval [t_cur, ev.t] with the active set fixed.
-        if active > 0 && ev.t > t_cur {
-            let len = (ev.t - t_cur) / p.scale;
+        // The interval [t_cur, ev.t()] with the active set fixed.
+        if active > 0 && ev.t() > t_cur {
+            let len = (ev.t() - t_cur) / p.scale;
             let mut q = poly;
             q[0] -= p.threshold;
             let sg = *sign.get_or_insert(if q[0] > 0.0 { -1.0 } else { 1.0 });
@@ -172,10 +164,10 @@ pub fn first_hit(p: &RayParams<'_>, ray: &Ray, candidates: &[u32], s: &mut Scrat
             }
         }
         if active > 0 {
-            poly::shift(&mut poly, n, (ev.t - t_cur) / p.scale);
+            poly::shift(&mut poly, n, (ev.t() - t_cur) / p.scale);
         }
-        t_cur = ev.t;
-        let m = s.met[ev.slot as usize];
+        t_cur = ev.t();
+        let m = s.met[ev.slot() as usize];
         let fb = &p.balls[m.ball as usize];
         // s(x) = ((t_cur + S·x − b)² + h2)/R².
         let e = t_cur - m.b;
@@ -186,7 +178,7 @@ pub fn first_hit(p: &RayParams<'_>, ray: &Ray, candidates: &[u32], s: &mut Scrat
             sc * sc * fb.inv_r2,
         ];
         let kp = p.kernel.compose(q);
-        if ev.exit {
+        if ev.exit() {
             active -= 1;
             if active == 0 {
                 poly = [0.0; MAX_TERMS];
@@ -204,18 +196,20 @@ pub fn first_hit(p: &RayParams<'_>, ray: &Ray, candidates: &[u32], s: &mut Scrat
     }
 }
 
-/// The colour at the hit `t` of `ray`: the balls' colours blended by their
-/// kernel weights, Phong-shaded with the gradient of the field as normal
-/// (two-sided), flat without shading. Premultiplied, opaque.
-pub fn shade(p: &RayParams<'_>, ray: &Ray, t: f64, candidates: &[u32]) -> Vec4 {
+/// The colour at the hit `t` of `ray` found by [`first_hit`] with `s`: the
+/// balls' colours blended by their kernel weights, Phong-shaded with the
+/// gradient of the field as normal (two-sided), flat without shading.
+/// Premultiplied, opaque.
+pub fn shade(p: &RayParams<'_>, ray: &Ray, t: f64, s: &Scratch) -> Vec4 {
     let o = ray.origin.as_dvec3();
     let d = ray.dir.as_dvec3();
     let x = o + t * d;
     let mut grad = DVec3::ZERO;
     let mut color = Vec3::ZERO;
     let mut weight = 0.0f64;
-    for &k in candidates {
-        let fb = &p.balls[k as usize];
+    // Every ball active at the hit was met before it.
+    for m in &s.met {
+        let fb = &p.balls[m.ball as usize];
         let v = x - fb.center;
         let s = v.length_squared() * fb.inv_r2;
         if s >= 1.0 {

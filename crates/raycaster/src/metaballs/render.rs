@@ -268,7 +268,7 @@ fn render_tile(job: &TileJob<'_>, (tx, ty): (u32, u32)) -> (Vec<u8>, u64) {
             met += res.met as u64;
             let px = match res.t {
                 Some(t) => {
-                    let c = ray::shade(job.params, &r, t, cands);
+                    let c = ray::shade(job.params, &r, t, &scratch);
                     counts.add(c);
                     job.film.composite(c)
                 }
