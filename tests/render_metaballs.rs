@@ -9,13 +9,13 @@ use raycaster::metaballs::{
 };
 use raycaster::prelude::*;
 
-/// The frame's lists and the ray parameters the renderer uses.
-fn setup(balls: &Balls, camera: &Camera, kernel: Kernel, threshold: f64) -> TileLists {
+/// The frame's candidate lists, as the renderer builds them.
+fn setup(balls: &Balls, camera: &Camera) -> TileLists {
     let f = camera.frame().unwrap();
-    let _ = (kernel, threshold);
     TileLists::build(balls, &f, camera.width, camera.height, TILE, |_| Vec3::ONE).unwrap()
 }
 
+/// The ray parameters the renderer uses (unshaded).
 fn params<'a>(
     lists: &'a TileLists,
     balls: &Balls,
@@ -91,13 +91,11 @@ fn reference_hit(
     t_max: f64,
 ) -> Option<f64> {
     let g = |t: f64| field(balls, kernel, o + t * d) - threshold;
+    assert!(g(0.0) < 0.0);
     let mut t0 = 0.0;
-    let mut g0 = g(0.0);
-    assert!(g0 < 0.0);
     while t0 < t_max {
         let t1 = t0 + step;
-        let g1 = g(t1);
-        if g1 >= 0.0 {
+        if g(t1) >= 0.0 {
             let (mut a, mut b) = (t0, t1);
             while b - a > 1e-12 {
                 let m = 0.5 * (a + b);
@@ -106,9 +104,7 @@ fn reference_hit(
             return Some(b);
         }
         t0 = t1;
-        g0 = g1;
     }
-    let _ = g0;
     None
 }
 
@@ -132,7 +128,7 @@ fn one_ball_is_the_analytic_sphere_with_radial_normals() {
             .unwrap();
             let mut cam = Camera::look_at(Vec3::new(1.0, 2.0, 8.0), Vec3::ZERO, 64, 48);
             cam.projection = proj;
-            let lists = setup(&balls, &cam, kernel, threshold);
+            let lists = setup(&balls, &cam);
             let p = params(&lists, &balls, kernel, threshold);
             let rho = kernel.level_radius(threshold).unwrap() * r as f64;
             let mut hit_count = 0;
@@ -197,7 +193,7 @@ fn two_overlapping_balls_match_a_dense_f64_march() {
         for pos in [Vec3::new(0.2, 0.5, 4.0), Vec3::new(3.0, 1.5, 0.5)] {
             let mut cam = Camera::look_at(pos, Vec3::ZERO, 40, 32);
             cam.fov_y_deg = 50.0;
-            let lists = setup(&set, &cam, kernel, threshold);
+            let lists = setup(&set, &cam);
             let p = params(&lists, &set, kernel, threshold);
             let r_min = 0.8;
             let mut n_hits = 0;
@@ -268,7 +264,7 @@ fn the_neck_of_two_balls_is_the_root_of_the_1d_field() {
     // meets the neck at distance 5 − y*.
     let mut cam = Camera::look_at(Vec3::new(0.0, 5.0, 0.0), Vec3::ZERO, 33, 33);
     cam.up = Vec3::Z;
-    let lists = setup(&balls, &cam, kernel, threshold);
+    let lists = setup(&balls, &cam);
     let p = params(&lists, &balls, kernel, threshold);
     let f = cam.frame().unwrap();
     let ray = f.ray(16, 16);

@@ -54,7 +54,7 @@ pub struct ViewerArgs {
 #[derive(Debug, Subcommand)]
 pub enum Command {
     /// Render a volume to a PNG without a window, optionally timing it.
-    Render(RenderArgs),
+    Render(Box<RenderArgs>),
     /// Describe a volume file: format, dimensions, sample type, spacing,
     /// value range, orientation as stored, size on disk and in memory.
     Info(InfoArgs),

@@ -64,7 +64,7 @@ impl Balls {
     /// radius that is not finite and > 0.
     pub fn new(balls: Vec<Ball>, has_values: bool) -> Result<Self> {
         for (i, b) in balls.iter().enumerate() {
-            if !b.center.is_finite() || !(b.radius.is_finite() && b.radius > 0.0) {
+            if !(b.center.is_finite() && b.radius.is_finite() && b.radius > 0.0) {
                 return Err(Error::option(
                     "balls",
                     format!(
