@@ -209,6 +209,79 @@ impl CameraFrame {
         ))
     }
 
+    /// The eye position P (for an orthographic camera, the centre of the
+    /// image plane the rays start from).
+    pub fn position(&self) -> Vec3 {
+        self.position
+    }
+
+    /// Perspective or orthographic.
+    pub fn projection(&self) -> Projection {
+        self.projection
+    }
+
+    /// The whole image.
+    pub fn full_rect(&self) -> PixelRect {
+        PixelRect {
+            x0: 0,
+            y0: 0,
+            x1: self.width as u32,
+            y1: self.height as u32,
+        }
+    }
+
+    /// The pixels whose rays (`t >= 0`) can meet the sphere of `center` and
+    /// `radius`: the bounding square of its exact projection (under
+    /// perspective, the tangent planes through the eye; orthographic, the
+    /// disc), grown by one pixel and clamped to the image; the whole image
+    /// when the sphere reaches the eye plane, `None` when it is wholly
+    /// behind the eye or off screen.
+    pub fn sphere_rect(&self, center: Vec3, radius: f32) -> Option<PixelRect> {
+        let v = (center - self.position).as_dvec3();
+        let x = v.dot(self.right.as_dvec3());
+        let y = v.dot(self.up.as_dvec3());
+        let z = v.dot(self.forward.as_dvec3());
+        let r = radius as f64;
+        if z < -r {
+            return None;
+        }
+        let ((sx0, sx1), (sy0, sy1)) = match self.projection {
+            Projection::Perspective => {
+                if z <= r * (1.0 + 1e-6) {
+                    return Some(self.full_rect());
+                }
+                // Tangent lines through the eye to the sphere's (disc)
+                // projection on the plane of the axis and the view direction.
+                let den = z * z - r * r;
+                let range = |c: f64| {
+                    let root = (c * c + den).sqrt();
+                    ((c * z - r * root) / den, (c * z + r * root) / den)
+                };
+                (range(x), range(y))
+            }
+            Projection::Orthographic => {
+                let d = self.distance as f64;
+                (((x - r) / d, (x + r) / d), ((y - r) / d, (y + r) / d))
+            }
+        };
+        let (w, h) = (self.width as f64, self.height as f64);
+        let hx = self.half_height as f64 * self.aspect as f64;
+        let hy = self.half_height as f64;
+        let px0 = (sx0 / hx + 1.0) * 0.5 * w;
+        let px1 = (sx1 / hx + 1.0) * 0.5 * w;
+        let py0 = (1.0 - sy1 / hy) * 0.5 * h;
+        let py1 = (1.0 - sy0 / hy) * 0.5 * h;
+        // Pixel i's ray passes through i + 0.5; one pixel of margin for the
+        // rays' f32 rounding.
+        let rect = PixelRect {
+            x0: (px0.floor() - 1.0).clamp(0.0, w) as u32,
+            y0: (py0.floor() - 1.0).clamp(0.0, h) as u32,
+            x1: (px1.ceil() + 1.0).clamp(0.0, w) as u32,
+            y1: (py1.ceil() + 1.0).clamp(0.0, h) as u32,
+        };
+        (rect.x0 < rect.x1 && rect.y0 < rect.y1).then_some(rect)
+    }
+
     /// The pixels whose rays can hit `bounds`: the projected box's rectangle
     /// grown by one pixel, clamped to the image; the whole image when part of
     /// the box is behind the eye (the camera is inside or beside it).
@@ -273,6 +346,42 @@ mod tests {
                 let (x, y) = f.project(r.at(7.0)).unwrap();
                 assert!((x - (i as f32 + 0.5)).abs() < 1e-3, "{proj:?} {x} {i}");
                 assert!((y - (j as f32 + 0.5)).abs() < 1e-3, "{proj:?} {y} {j}");
+            }
+        }
+    }
+
+    #[test]
+    fn every_pixel_whose_ray_meets_a_sphere_is_in_its_rect() {
+        let mut rng = fastrand::Rng::with_seed(3);
+        for n in 0..300 {
+            let c = Vec3::new(
+                rng.f32() * 6.0 - 3.0,
+                rng.f32() * 6.0 - 3.0,
+                rng.f32() * 6.0 - 3.0,
+            );
+            let radius = 0.1 + rng.f32() * 2.0;
+            let pos = Vec3::new(rng.f32() * 16.0 - 8.0, rng.f32() * 16.0 - 8.0, 9.0);
+            let mut cam = Camera::look_at(pos, Vec3::ZERO, 48, 32);
+            cam.fov_y_deg = 20.0 + rng.f32() * 100.0;
+            if n % 3 == 2 {
+                cam.projection = Projection::Orthographic;
+            }
+            let Some(f) = cam.frame() else { continue };
+            let rect = f.sphere_rect(c, radius);
+            for j in 0..32 {
+                for i in 0..48 {
+                    let ray = f.ray(i, j);
+                    let oc = c - ray.origin;
+                    let b = oc.dot(ray.dir);
+                    let h2 = oc.length_squared() - b * b;
+                    let meets = h2 < radius * radius && b + (radius * radius - h2).sqrt() > 0.0;
+                    if meets {
+                        assert!(
+                            rect.is_some_and(|r| r.contains(i, j)),
+                            "pixel {i},{j} meets the sphere {c} {radius} but is outside {rect:?} ({cam:?})"
+                        );
+                    }
+                }
             }
         }
     }

@@ -71,6 +71,26 @@ pub enum Error {
         /// What the encoder said.
         message: String,
     },
+    /// A line of a points file (metaballs) cannot be read.
+    #[error("{}: line {line}: {message}", path.display())]
+    Points {
+        /// The points file.
+        path: PathBuf,
+        /// The line, counted from 1.
+        line: usize,
+        /// What is wrong with it.
+        message: String,
+    },
+    /// A volume or points file gives more metaballs than the cap allows.
+    #[error("{what} gives more than {cap} balls (the cap, --max-balls): {hint}")]
+    TooManyBalls {
+        /// Where the balls come from.
+        what: String,
+        /// The cap.
+        cap: usize,
+        /// How to get fewer balls.
+        hint: &'static str,
+    },
     /// A frame was cancelled by a caller that cannot see cancellations.
     #[error("the {renderer} renderer stopped a frame that could not be cancelled")]
     Cancelled {

@@ -18,6 +18,7 @@
 //! | [`camera`] | perspective and orthographic cameras, screen rectangles |
 //! | [`transfer`] | transfer functions, presets, lookup tables |
 //! | [`integrator`] | what happens along one ray, per mode |
+//! | [`metaballs`] | implicit surfaces of balls from a volume or a points file |
 //! | [`render`] | which rays are cast on which threads |
 //! | [`scene`] | a volume plus its acceleration data |
 //! | [`sequence`] | time series: frames of one geometry, decoded ahead of a player |
@@ -70,6 +71,7 @@ pub mod error;
 pub mod format;
 pub mod geometry;
 pub mod integrator;
+pub mod metaballs;
 pub mod render;
 pub mod sample;
 pub mod scene;

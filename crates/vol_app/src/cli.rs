@@ -6,6 +6,7 @@ use std::process::ExitCode;
 use clap::{Args, Parser, Subcommand};
 use glam::Vec3;
 use raycaster::integrator::IsoNormals;
+use raycaster::metaballs::Kernel;
 use raycaster::prelude::{RenderMode, RendererKind, TaskOrder};
 
 /// Volume viewer and headless renderer for CPU ray casting.
@@ -300,8 +301,9 @@ volumes/800shapes_block16.vol --size 700x700 --camera-pos 1100,1100,1100 --look-
 pub struct RenderArgs {
     /// Volume file (.vol, .nrrd, .nhdr, .nii, .nii.gz, a DICOM directory or
     /// file, UC Davis .vol, or raw with --raw-dims/--raw-type) or sequence
-    /// (.vseq, a 4-D file, a directory of frame files). Without it, the
-    /// built-in demo volume is rendered.
+    /// (.vseq, a 4-D file, a directory of frame files); with --mode
+    /// metaballs also a points file (.csv, .xyz: x,y,z[,radius[,value]] a
+    /// line). Without it, the built-in demo volume is rendered.
     pub file: Option<PathBuf>,
     /// Output PNG (RGB8). Default: out.png, unless --stats is given. With
     /// --frames: the directory the frames go to (frame_0000.png, ...).
@@ -349,6 +351,35 @@ pub struct RenderArgs {
     /// Iso value for --mode iso. Default: the middle of the data's value range.
     #[arg(long, value_name = "V", allow_hyphen_values = true)]
     pub iso: Option<f32>,
+    /// --mode metaballs: a voxel gives a ball when its value exceeds this
+    /// (data units). Default: 30 % of the way up the data's value range
+    /// (the seed's 0.3 of normalised intensity).
+    #[arg(long, value_name = "T", allow_hyphen_values = true)]
+    pub ball_threshold: Option<f32>,
+    /// --mode metaballs: take every N-th voxel along each axis.
+    #[arg(long, value_name = "N", default_value_t = 1, value_parser = clap::value_parser!(u32).range(1..))]
+    pub ball_stride: u32,
+    /// --mode metaballs: ball radius in world units (a points file's radius
+    /// column wins). Default: 1.5·stride·(largest voxel spacing) for a
+    /// volume; for a points file 1.5 times the spacing of a cubic lattice of
+    /// as many points filling their box.
+    #[arg(long, value_name = "R", allow_hyphen_values = true)]
+    pub ball_radius: Option<f32>,
+    /// --mode metaballs: the kernel.
+    #[arg(long, value_enum, default_value_t = Kernel::Wyvill)]
+    pub kernel: Kernel,
+    /// --mode metaballs: the surface is where the summed field equals this.
+    #[arg(
+        long,
+        value_name = "T",
+        default_value_t = 0.5,
+        allow_hyphen_values = true
+    )]
+    pub field_threshold: f32,
+    /// --mode metaballs: fail when the volume or file gives more balls than
+    /// this (0 = no cap).
+    #[arg(long, value_name = "N", default_value_t = 2_000_000)]
+    pub max_balls: usize,
     /// Phong shading from gradients.
     #[arg(long, value_enum, default_value_t = Switch::On)]
     pub shading: Switch,

@@ -7,6 +7,7 @@
 mod cli;
 mod convert_cmd;
 mod info_cmd;
+mod metaballs_cmd;
 mod pack_cmd;
 mod progress;
 mod progressive_cmd;

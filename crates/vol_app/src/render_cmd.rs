@@ -11,13 +11,16 @@ use raycaster::transfer::PRESET_NAMES;
 
 use crate::anyhow_like::Error;
 use crate::cli::{FrameRange, RenderArgs};
-use crate::stats::{PlayStats, RenderStats, median, peak_rss_mb};
+use crate::stats::{PlayStats, RenderStats, median, peak_rss_mb, print_json};
 
 /// Frames `--frames` keeps decoded ahead of the renderer.
 const PLAYBACK_AHEAD: u32 = 3;
 
 /// Runs the `render` subcommand.
 pub fn run(args: &RenderArgs) -> Result<(), Error> {
+    if args.mode == RenderMode::Metaballs {
+        return crate::metaballs_cmd::run(args);
+    }
     let load_start = Instant::now();
     let mode = if args.in_ram {
         LoadMode::Ram
@@ -106,24 +109,7 @@ pub fn run(args: &RenderArgs) -> Result<(), Error> {
     };
 
     let (width, height) = args.size;
-    let bounds = scene.grid().bounds();
-    let mut camera = Camera::framing(&bounds, width, height, args.fov);
-    if let Some(p) = args.camera_pos {
-        camera.position = p;
-    }
-    camera.target = args.look_at.unwrap_or(bounds.center());
-    camera.up = args.up;
-    camera.fov_y_deg = args.fov;
-    if args.ortho {
-        camera.projection = Projection::Orthographic;
-    }
-    if camera.frame().is_none() {
-        return Err(format!(
-            "camera is degenerate: position {} and look-at {} must differ, up {} must not be parallel to the view, fov {} must be in (0, 180)",
-            camera.position, camera.target, camera.up, camera.fov_y_deg
-        )
-        .into());
-    }
+    let camera = camera_for(args, &scene.grid().bounds())?;
 
     let (lo, hi) = scene.value_range();
     let options = RenderOptions {
@@ -232,15 +218,9 @@ pub fn run(args: &RenderArgs) -> Result<(), Error> {
             covered: last.stats.covered,
             samples: last.stats.samples,
             peak_rss_mb: peak_rss_mb(),
+            metaballs: None,
         };
-        // A closed pipe (`| head`) is the reader's choice, not an error.
-        use std::io::Write;
-        let mut out = std::io::stdout().lock();
-        if let Err(e) = writeln!(out, "{}", serde_json::to_string(&stats)?)
-            && e.kind() != std::io::ErrorKind::BrokenPipe
-        {
-            return Err(e.into());
-        }
+        print_json(&stats)?;
     } else if let Some(path) = &out {
         eprintln!(
             "vol_app: wrote {} ({}x{}, {:.1} ms, {} samples)",
@@ -321,7 +301,7 @@ fn play(
             samples,
             peak_rss_mb: peak_rss_mb(),
         };
-        println!("{}", serde_json::to_string(&stats)?);
+        print_json(&stats)?;
     } else if let Some(d) = &dir {
         eprintln!(
             "vol_app: wrote {n} frames to {} ({width}x{height}, {:.1} frames/s)",
@@ -330,6 +310,29 @@ fn play(
         );
     }
     Ok(())
+}
+
+/// The camera of the command line, framing `bounds` by default.
+pub fn camera_for(args: &RenderArgs, bounds: &raycaster::geometry::Aabb) -> Result<Camera, Error> {
+    let (width, height) = args.size;
+    let mut camera = Camera::framing(bounds, width, height, args.fov);
+    if let Some(p) = args.camera_pos {
+        camera.position = p;
+    }
+    camera.target = args.look_at.unwrap_or(bounds.center());
+    camera.up = args.up;
+    camera.fov_y_deg = args.fov;
+    if args.ortho {
+        camera.projection = Projection::Orthographic;
+    }
+    if camera.frame().is_none() {
+        return Err(format!(
+            "camera is degenerate: position {} and look-at {} must differ, up {} must not be parallel to the view, fov {} must be in (0, 180)",
+            camera.position, camera.target, camera.up, camera.fov_y_deg
+        )
+        .into());
+    }
+    Ok(camera)
 }
 
 /// One warm-up frame when repeating, then `repeat` timed frames.
@@ -354,6 +357,6 @@ fn render_repeated(
     Ok((last, times))
 }
 
-fn ms(d: std::time::Duration) -> f64 {
+pub fn ms(d: std::time::Duration) -> f64 {
     (d.as_secs_f64() * 1e5).round() / 100.0
 }

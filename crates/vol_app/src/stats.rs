@@ -19,6 +19,36 @@ pub struct RenderStats {
     pub covered: u64,
     pub samples: u64,
     pub peak_rss_mb: f64,
+    /// --mode metaballs only.
+    #[serde(flatten)]
+    pub metaballs: Option<MetaballJson>,
+}
+
+/// The `--stats` fields of `--mode metaballs`.
+#[derive(Debug, Serialize)]
+pub struct MetaballJson {
+    /// Balls made from the volume or the points file.
+    pub balls: usize,
+    /// Making them (ms; part of `load_ms`).
+    pub build_ms: f64,
+    /// Building the tile candidate lists, per frame (ms, median; part of
+    /// `frame_ms`).
+    pub lists_ms_median: f64,
+    /// Entries in all candidate lists (last frame).
+    pub list_entries: u64,
+}
+
+/// Prints `value` as one JSON line on stdout; a closed pipe (`| head`) is
+/// the reader's choice, not an error.
+pub fn print_json<T: Serialize>(value: &T) -> Result<(), crate::anyhow_like::Error> {
+    use std::io::Write;
+    let mut out = std::io::stdout().lock();
+    if let Err(e) = writeln!(out, "{}", serde_json::to_string(value)?)
+        && e.kind() != std::io::ErrorKind::BrokenPipe
+    {
+        return Err(e.into());
+    }
+    Ok(())
 }
 
 /// Timings and counters of a `vol_app render --frames` run: frames

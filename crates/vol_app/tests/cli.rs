@@ -704,3 +704,97 @@ fn pack_info_and_render_frames_of_a_sequence() {
     );
     assert!(!dir.path("bad.vseq").exists());
 }
+
+#[test]
+fn metaballs_render_from_points_files_and_volumes() {
+    let dir = TempDir::new("metaballs");
+    let pts = dir.write(
+        "two.csv",
+        b"# two balls\nx,y,z,radius,value\n-0.4,0,0,1,100\n0.4,0,0,1,200\n",
+    );
+    // Every renderer gives the same PNG; --stats reports the balls.
+    let mut pngs = Vec::new();
+    for renderer in ["serial", "tiles", "object"] {
+        let png = dir.path(&format!("{renderer}.png"));
+        let out = run_ok(
+            vol_app_on("render", &pts)
+                .args([
+                    "--mode",
+                    "metaballs",
+                    "--size",
+                    "48x40",
+                    "--renderer",
+                    renderer,
+                    "--threads",
+                    "2",
+                    "--tf-preset",
+                    "ramp",
+                    "--repeat",
+                    "2",
+                    "--stats",
+                    "--out",
+                ])
+                .arg(&png),
+        );
+        let v: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
+        assert_eq!(v["balls"], 2);
+        assert_eq!(v["frame_ms"].as_array().unwrap().len(), 2);
+        assert!(v["covered"].as_u64().unwrap() > 100, "{v}");
+        for key in ["build_ms", "lists_ms_median", "list_entries", "peak_rss_mb"] {
+            assert!(!v[key].is_null(), "{key} missing in {v}");
+        }
+        pngs.push(std::fs::read(&png).unwrap());
+    }
+    assert!(pngs.windows(2).all(|w| w[0] == w[1]));
+
+    // A volume: one ball per voxel above the threshold; the cap's error.
+    let vol = ball_file(&dir, VolLayout::Linear);
+    let out = run_ok(vol_app_on("render", &vol).args([
+        "--mode",
+        "metaballs",
+        "--size",
+        "32x32",
+        "--ball-threshold",
+        "100",
+        "--ball-stride",
+        "2",
+        "--kernel",
+        "murakami",
+        "--shading",
+        "off",
+        "--stats",
+    ]));
+    let v: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
+    assert!(v["balls"].as_u64().unwrap() > 10, "{v}");
+    assert!(v["covered"].as_u64().unwrap() > 0, "{v}");
+    let out = output(vol_app_on("render", &vol).args([
+        "--mode",
+        "metaballs",
+        "--ball-threshold",
+        "100",
+        "--max-balls",
+        "5",
+        "--stats",
+    ]));
+    assert_one_line_error(&out, "gives more than 5 balls (the cap, --max-balls)");
+
+    // Bad points files and options: one line naming the file and line.
+    let bad = dir.write("bad.xyz", b"0 0 0 1\n1 1\n");
+    let out = output(vol_app_on("render", &bad).args(["--mode", "metaballs", "--stats"]));
+    assert_one_line_error(&out, "bad.xyz: line 2: expected x,y,z");
+    let cases: Vec<(Vec<&str>, &str)> = vec![
+        (vec!["--field-threshold", "0"], "--field-threshold"),
+        (vec!["--ball-radius", "-1"], "--ball-radius"),
+        (vec!["--kernel", "blinn"], "blinn"),
+        (vec!["--shadows", "on"], "--shadows"),
+        (vec!["--light", "0,0,0"], "invalid light"),
+    ];
+    for (args, needle) in cases {
+        let out = output(
+            vol_app_on("render", &pts)
+                .args(["--mode", "metaballs", "--stats"])
+                .args(&args),
+        );
+        assert_one_line_error(&out, needle);
+    }
+}

@@ -17,6 +17,7 @@ mod batch;
 mod dvr;
 mod iso;
 mod mip;
+mod none;
 mod segment;
 mod shading;
 
@@ -24,6 +25,7 @@ pub use avg::AvgState;
 pub use dvr::DvrState;
 pub use iso::{CellCubic, IsoHit, IsoNormals, IsoState};
 pub use mip::MipState;
+pub use none::NoSamples;
 pub use segment::RaySegment;
 pub use shading::Phong;
 
@@ -55,6 +57,13 @@ pub enum RenderMode {
     /// First crossing of an iso value, shaded.
     #[cfg_attr(feature = "clap", value(help = "Isosurface at --iso"))]
     Iso,
+    /// The surface of metaballs made from the volume or a points file
+    /// (rendered by [`crate::metaballs`], not from the volume's samples).
+    #[cfg_attr(
+        feature = "clap",
+        value(help = "Metaballs: balls from voxels above --ball-threshold or a points file")
+    )]
+    Metaballs,
 }
 
 impl RenderMode {
@@ -65,6 +74,7 @@ impl RenderMode {
             RenderMode::Mip => "mip",
             RenderMode::Avg => "avg",
             RenderMode::Iso => "iso",
+            RenderMode::Metaballs => "metaballs",
         }
     }
 
@@ -76,7 +86,14 @@ impl RenderMode {
             RenderMode::Mip => visitor.visit::<MipState>(),
             RenderMode::Avg => visitor.visit::<AvgState>(),
             RenderMode::Iso => visitor.visit::<IsoState>(),
+            RenderMode::Metaballs => visitor.visit::<NoSamples>(),
         }
+    }
+
+    /// Whether the mode is rendered from the volume's samples by an
+    /// [`Integrator`] (every mode but [`RenderMode::Metaballs`]).
+    pub fn samples_volume(self) -> bool {
+        self != RenderMode::Metaballs
     }
 }
 

@@ -24,7 +24,7 @@
 
 mod any;
 mod driver;
-mod film;
+pub(crate) mod film;
 mod frame;
 pub mod front;
 pub mod object;

@@ -109,6 +109,15 @@ impl FramePlan {
         tf: &TransferFunction,
         options: &RenderOptions,
     ) -> Result<Self> {
+        if !options.mode.samples_volume() {
+            return Err(Error::option(
+                "mode",
+                format!(
+                    "{} is not rendered from the volume's samples: use raycaster::metaballs::MetaballRenderer",
+                    options.mode.name()
+                ),
+            ));
+        }
         let grid = scene.grid();
         let frame = camera.frame().ok_or_else(|| {
             Error::option(

@@ -23,7 +23,9 @@ pub const DEFAULT_STEP_FACTOR: f32 = 0.5;
 /// The range of the step slider, in units of the smallest voxel spacing.
 pub const STEP_FACTOR_RANGE: std::ops::RangeInclusive<f32> = 0.05..=4.0;
 
-/// The rendering modes, in menu order.
+/// The rendering modes, in menu order. Metaballs are not offered: they are
+/// rendered from balls by `vol_app render --mode metaballs`, not by the
+/// viewer's volume renderer (issue 14, item 2).
 pub const MODES: [RenderMode; 4] = [
     RenderMode::Dvr,
     RenderMode::Mip,
@@ -38,6 +40,7 @@ pub fn mode_label(mode: RenderMode) -> &'static str {
         RenderMode::Mip => "MIP",
         RenderMode::Avg => "X-ray",
         RenderMode::Iso => "Iso",
+        RenderMode::Metaballs => "Metaballs",
     }
 }
 

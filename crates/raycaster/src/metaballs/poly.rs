@@ -1,0 +1,297 @@
+//! Polynomials of degree ≤ 6 on an interval: evaluation, the Taylor shift
+//! that moves a ray's running sum from one interval to the next, and the
+//! first root on `[0, len]`, isolated with Bernstein coefficients.
+//!
+//! Root isolation: on `[0, len]` the polynomial's Bernstein coefficients
+//! bound it (convex hull property). When all of them are negative the
+//! interval has no root; otherwise it is halved (de Casteljau) and the left
+//! half searched first, down to a width of `tol`. A leaf of that width
+//! holds a root when its ends differ in sign; the root is then
+//! interpolated linearly between them (error < `tol`). So the first sign
+//! change is never missed nor overshot; two roots closer together than
+//! `tol` (a ray grazing the surface, a double root) can go unnoticed,
+//! which moves nothing by more than `tol`.
+
+use super::kernel::{MAX_TERMS, Poly};
+
+/// `p(x)` for a polynomial of degree `n`.
+#[inline]
+pub fn eval(p: &Poly, n: usize, x: f64) -> f64 {
+    let mut acc = p[n];
+    for k in (0..n).rev() {
+        acc = acc * x + p[k];
+    }
+    acc
+}
+
+/// Replaces `p(x)` by `p(x + d)` (Taylor shift, `n(n+1)/2` multiply-adds).
+#[inline]
+pub fn shift(p: &mut Poly, n: usize, d: f64) {
+    if d == 0.0 {
+        return;
+    }
+    for i in 0..n {
+        for k in (i..n).rev() {
+            p[k] += d * p[k + 1];
+        }
+    }
+}
+
+/// Binomial coefficients `C(i, k)` for `i, k <= 6`.
+const BINOM: [[f64; MAX_TERMS]; MAX_TERMS] = {
+    let mut t = [[0.0; MAX_TERMS]; MAX_TERMS];
+    let mut i = 0;
+    while i < MAX_TERMS {
+        t[i][0] = 1.0;
+        let mut k = 1;
+        while k <= i {
+            t[i][k] = t[i - 1][k - 1] + if k < i { t[i - 1][k] } else { 0.0 };
+            k += 1;
+        }
+        i += 1;
+    }
+    t
+};
+
+/// Bernstein coefficients of `p` (degree `n`) on `[0, len]`.
+#[inline]
+pub fn bernstein(p: &Poly, n: usize, len: f64) -> Poly {
+    let mut scaled = [0.0; MAX_TERMS];
+    let mut l = 1.0;
+    for k in 0..=n {
+        scaled[k] = p[k] * l / BINOM[n][k];
+        l *= len;
+    }
+    let mut b = [0.0; MAX_TERMS];
+    for i in 0..=n {
+        let mut acc = 0.0;
+        for k in 0..=i {
+            acc += BINOM[i][k] * scaled[k];
+        }
+        b[i] = acc;
+    }
+    b
+}
+
+/// The first `x` in `[0, len]` where `p` (degree `n`) reaches 0 from below,
+/// within `tol`; `Some(0)` when `p(0) >= 0`. See the module docs for what
+/// may be missed (two roots closer than `tol`).
+pub fn first_root(p: &Poly, n: usize, len: f64, tol: f64) -> Option<f64> {
+    // A cheap bound first: on [0, len], p <= p0 + Σ max(p_k, 0)·len^k. On
+    // the short intervals between the events of many balls it is usually
+    // enough to rule a root out.
+    let mut upper = 0.0;
+    for k in (1..=n).rev() {
+        upper = (upper + p[k].max(0.0)) * len;
+    }
+    if p[0] < 0.0 && p[0] + upper < 0.0 {
+        return None;
+    }
+    let b = bernstein(p, n, len);
+    search(p, &b, n, 0.0, len, tol.max(len * 1e-12))
+}
+
+/// Sign changes in the Bernstein coefficients (zeros skipped): an upper
+/// bound on the roots in the interval, exact when 0 or 1 (Descartes' rule
+/// for the Bernstein basis).
+#[inline]
+fn sign_changes(b: &Poly, n: usize) -> u32 {
+    let mut changes = 0;
+    let mut prev = 0.0f64;
+    for &c in &b[..=n] {
+        if c != 0.0 {
+            if prev != 0.0 && (c > 0.0) != (prev > 0.0) {
+                changes += 1;
+            }
+            prev = c;
+        }
+    }
+    changes
+}
+
+/// The first root of `p` on `[a, a + w]`, whose Bernstein coefficients are
+/// `b`, with `p(a) < 0` unless it is the first call.
+fn search(p: &Poly, b: &Poly, n: usize, a: f64, w: f64, tol: f64) -> Option<f64> {
+    if b[0] >= 0.0 {
+        return Some(a);
+    }
+    match sign_changes(b, n) {
+        // p(a) < 0 and no sign change: p <= 0 on the interval.
+        0 => return None,
+        // Exactly one root, p(a) < 0 < p(a + w): refine it.
+        1 if b[n] > 0.0 => return Some(refine(p, n, a, a + w, tol)),
+        _ => {}
+    }
+    if w <= tol {
+        // A sign change between the leaf's ends: interpolate.
+        return (b[n] >= 0.0).then(|| a + w * (b[0] / (b[0] - b[n])));
+    }
+    let (left, right) = split(b, n);
+    let h = 0.5 * w;
+    search(p, &left, n, a, h, tol).or_else(|| search(p, &right, n, a + h, h, tol))
+}
+
+/// The one root of `p` in `[lo, hi]` (`p(lo) < 0 < p(hi)`) to within
+/// `tol`: regula falsi with the Illinois modification, the bracket kept.
+fn refine(p: &Poly, n: usize, mut lo: f64, mut hi: f64, tol: f64) -> f64 {
+    let mut f_lo = eval(p, n, lo);
+    let mut f_hi = eval(p, n, hi);
+    if !(f_lo < 0.0 && f_hi > 0.0) {
+        // Rounding disagrees with the Bernstein signs: bisect on them.
+        f_lo = f_lo.min(-f64::MIN_POSITIVE);
+        f_hi = f_hi.max(f64::MIN_POSITIVE);
+    }
+    let mut side = 0i8;
+    for _ in 0..100 {
+        if hi - lo <= tol {
+            break;
+        }
+        let mut x = (lo * f_hi - hi * f_lo) / (f_hi - f_lo);
+        if !(x > lo && x < hi) {
+            x = 0.5 * (lo + hi);
+        }
+        let fx = eval(p, n, x);
+        if fx >= 0.0 {
+            hi = x;
+            f_hi = fx;
+            if side == 1 {
+                f_lo *= 0.5;
+            }
+            side = 1;
+        } else {
+            lo = x;
+            f_lo = fx;
+            if side == -1 {
+                f_hi *= 0.5;
+            }
+            side = -1;
+        }
+        if fx == 0.0 {
+            return x;
+        }
+    }
+    // The root is in [lo, hi], narrower than tol (or p is flat to rounding
+    // there): interpolate.
+    let f = f_lo / (f_lo - f_hi);
+    lo + (hi - lo) * f.clamp(0.0, 1.0)
+}
+
+/// de Casteljau at the midpoint: the Bernstein coefficients of both halves.
+#[inline]
+fn split(b: &Poly, n: usize) -> (Poly, Poly) {
+    let mut work = *b;
+    let mut left = [0.0; MAX_TERMS];
+    let mut right = [0.0; MAX_TERMS];
+    left[0] = work[0];
+    right[n] = work[n];
+    for r in 1..=n {
+        for k in 0..=n - r {
+            work[k] = 0.5 * (work[k] + work[k + 1]);
+        }
+        left[r] = work[0];
+        right[n - r] = work[n - r];
+    }
+    (left, right)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn from_roots(roots: &[f64], scale: f64) -> Poly {
+        let mut p = [0.0; MAX_TERMS];
+        p[0] = scale;
+        for &r in roots {
+            // multiply by (x − r)
+            for k in (0..MAX_TERMS).rev() {
+                let lower = if k > 0 { p[k - 1] } else { 0.0 };
+                p[k] = lower - r * p[k];
+            }
+        }
+        p
+    }
+
+    #[test]
+    fn shift_and_bernstein_agree_with_evaluation() {
+        let p = [0.3, -1.2, 0.7, 2.0, -0.4, 0.1, -0.05];
+        let mut q = p;
+        shift(&mut q, 6, 0.75);
+        for i in 0..10 {
+            let x = i as f64 * 0.2 - 1.0;
+            assert!((eval(&q, 6, x) - eval(&p, 6, x + 0.75)).abs() < 1e-12);
+        }
+        // Bernstein end coefficients are the end values, and they bound p.
+        let b = bernstein(&p, 6, 1.5);
+        assert!((b[0] - eval(&p, 6, 0.0)).abs() < 1e-12);
+        assert!((b[6] - eval(&p, 6, 1.5)).abs() < 1e-12);
+        let (lo, hi) = b
+            .iter()
+            .fold((f64::MAX, f64::MIN), |(l, h), &c| (l.min(c), h.max(c)));
+        for i in 0..=100 {
+            let v = eval(&p, 6, 1.5 * i as f64 / 100.0);
+            assert!(v >= lo - 1e-12 && v <= hi + 1e-12);
+        }
+        // The halves of a split evaluate to p on each half.
+        let (l, r) = split(&b, 6);
+        let power_of = |bc: &Poly, x: f64| {
+            // Bernstein evaluation on [0, 1].
+            (0..=6)
+                .map(|i| BINOM[6][i] * x.powi(i as i32) * (1.0 - x).powi(6 - i as i32) * bc[i])
+                .sum::<f64>()
+        };
+        assert!((power_of(&l, 0.5) - eval(&p, 6, 0.375)).abs() < 1e-12);
+        assert!((power_of(&r, 0.5) - eval(&p, 6, 1.125)).abs() < 1e-12);
+    }
+
+    #[test]
+    fn first_root_finds_the_leftmost_sign_change() {
+        // Roots 0.3, 0.31 (close pair), 0.9; negative at 0.
+        let p = from_roots(&[0.3, 0.31, 0.9, 2.0, 3.0, -1.0], 1.0);
+        assert!(eval(&p, 6, 0.0) < 0.0);
+        let r = first_root(&p, 6, 1.0, 1e-6).unwrap();
+        assert!((r - 0.3).abs() < 1e-6, "{r}");
+        // No root on [0, 0.29].
+        assert!(first_root(&p, 6, 0.29, 1e-6).is_none());
+        // Degree 4.
+        let q = from_roots(&[0.55, 1.7, -0.5, 4.0], 1.0);
+        assert!(eval(&q, 4, 0.0) < 0.0);
+        assert!((first_root(&q, 4, 1.0, 1e-7).unwrap() - 0.55).abs() < 1e-7);
+        // Already non-negative at 0.
+        assert_eq!(
+            first_root(&[1.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0], 6, 1.0, 1e-6),
+            Some(0.0)
+        );
+        // Negative everywhere.
+        assert!(first_root(&[-1.0, 0.0, 0.5, 0.0, 0.0, 0.0, 0.0], 6, 1.0, 1e-6).is_none());
+    }
+
+    #[test]
+    fn first_root_matches_a_dense_scan_on_random_polynomials() {
+        let mut rng = fastrand::Rng::with_seed(11);
+        for _ in 0..2000 {
+            let mut p = [0.0; MAX_TERMS];
+            for c in p.iter_mut() {
+                *c = rng.f64() * 4.0 - 2.0;
+            }
+            p[0] = -rng.f64() - 0.01;
+            let tol = 1e-7;
+            let got = first_root(&p, 6, 1.0, tol);
+            // Dense scan: the first sample at or above zero.
+            let m = 20_000;
+            let scan = (1..=m)
+                .map(|i| i as f64 / m as f64)
+                .find(|&x| eval(&p, 6, x) >= 0.0);
+            match (got, scan) {
+                (Some(g), Some(s)) => {
+                    assert!(g <= s + tol && g > s - 1.0 / m as f64 - tol, "{g} {s}")
+                }
+                (None, Some(s)) => panic!("missed a root near {s}: {p:?}"),
+                (Some(g), None) => {
+                    // Only a root pair between scan samples may be found alone.
+                    assert!(eval(&p, 6, g).abs() < 1e-5, "{g} {p:?}");
+                }
+                (None, None) => {}
+            }
+        }
+    }
+}
