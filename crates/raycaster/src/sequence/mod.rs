@@ -46,24 +46,20 @@ pub struct Sequence {
     info: VolumeInfo,
     /// The sample type of the first frame's volume (after any rescale).
     sample_type: SampleType,
+    /// Frame 0 as read by the open, kept until it is first asked for.
+    first: Mutex<Option<AnyVolume>>,
 }
 
 #[derive(Debug)]
 enum Source {
-    /// The volumes of one file, picked by [`OpenOptions::volume`]; frame 0
-    /// is kept from the open until it is first asked for.
-    File {
-        path: PathBuf,
-        options: OpenOptions,
-        first: Mutex<Option<AnyVolume>>,
-    },
+    /// The volumes of one file, picked by [`OpenOptions::volume`].
+    File { path: PathBuf, options: OpenOptions },
     /// A packed sequence.
     Packed(VseqFile),
     /// One file per frame, in name order.
     Directory {
         files: Vec<PathBuf>,
         options: OpenOptions,
-        first: Mutex<Option<AnyVolume>>,
     },
 }
 
@@ -101,10 +97,10 @@ impl Sequence {
                 return Ok(Sequence {
                     path: path.to_path_buf(),
                     sample_type: volume.sample_type(),
+                    first: Mutex::new(Some(volume)),
                     source: Source::Directory {
                         files,
                         options: frame0,
-                        first: Mutex::new(Some(volume)),
                     },
                     info,
                 });
@@ -116,6 +112,7 @@ impl Sequence {
             return Ok(Sequence {
                 path: path.to_path_buf(),
                 sample_type: file.header().sample,
+                first: Mutex::new(None),
                 source: Source::Packed(file),
                 info,
             });
@@ -124,10 +121,10 @@ impl Sequence {
         Ok(Sequence {
             path: path.to_path_buf(),
             sample_type: volume.sample_type(),
+            first: Mutex::new(Some(volume)),
             source: Source::File {
                 path: path.to_path_buf(),
                 options: frame0,
-                first: Mutex::new(Some(volume)),
             },
             info,
         })
@@ -185,40 +182,24 @@ impl Sequence {
                 format!("frame {k} asked for, but the sequence has {frames} (numbered from 0)"),
             ));
         }
-        match &self.source {
-            Source::Packed(file) => file.frame(k),
-            Source::File {
+        if k == 0
+            && let Some(v) = self.first.lock().take()
+        {
+            return Ok(v);
+        }
+        let (path, options) = match &self.source {
+            Source::Packed(file) => return file.frame(k),
+            Source::File { path, options } => (
                 path,
-                options,
-                first,
-            } => {
-                if k == 0
-                    && let Some(v) = first.lock().take()
-                {
-                    return Ok(v);
-                }
-                let options = OpenOptions {
+                OpenOptions {
                     volume: u64::from(k),
                     ..options.clone()
-                };
-                let opened = crate::format::open_file(path, &options)?;
-                self.check(path, k, opened)
-            }
-            Source::Directory {
-                files,
-                options,
-                first,
-            } => {
-                if k == 0
-                    && let Some(v) = first.lock().take()
-                {
-                    return Ok(v);
-                }
-                let path = &files[k as usize];
-                let opened = crate::format::open_file(path, options)?;
-                self.check(path, k, opened)
-            }
-        }
+                },
+            ),
+            Source::Directory { files, options } => (&files[k as usize], options.clone()),
+        };
+        let opened = crate::format::open_file(path, &options)?;
+        self.check(path, k, opened)
     }
 
     /// Reads every frame once, checking it against the first (for `info`,

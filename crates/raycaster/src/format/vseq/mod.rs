@@ -606,62 +606,44 @@ thread_local! {
     static SCRATCH: std::cell::RefCell<Vec<u8>> = const { std::cell::RefCell::new(Vec::new()) };
 }
 
+/// Runs `$f::<W>(args)` with `W` the stored width in bytes (1, 2 or 4), so
+/// each word loop below is compiled for a constant width.
+macro_rules! with_width {
+    ($width:expr, $f:ident($($arg:expr),*)) => {
+        match $width {
+            1 => $f::<1>($($arg),*),
+            2 => $f::<2>($($arg),*),
+            _ => $f::<4>($($arg),*),
+        }
+    };
+}
+
 /// Undoes the delta filter in place: sample i becomes the wrapping sum of
 /// samples 0..=i (little-endian unsigned integers of `width` bytes).
 fn prefix_sum_wrapping(out: &mut [u8], width: usize) {
-    match width {
-        1 => {
-            let mut acc = 0u8;
-            for o in out.iter_mut() {
-                acc = acc.wrapping_add(*o);
-                *o = acc;
-            }
-        }
-        2 => {
-            let mut acc = 0u16;
-            for o in out.chunks_exact_mut(2) {
-                acc = acc.wrapping_add(u16::from_le_bytes([o[0], o[1]]));
-                o.copy_from_slice(&acc.to_le_bytes());
-            }
-        }
-        _ => {
-            let mut acc = 0u32;
-            for o in out.chunks_exact_mut(4) {
-                acc = acc.wrapping_add(u32::from_le_bytes([o[0], o[1], o[2], o[3]]));
-                o.copy_from_slice(&acc.to_le_bytes());
-            }
-        }
+    with_width!(width, prefix_sum_words(out))
+}
+
+fn prefix_sum_words<const W: usize>(out: &mut [u8]) {
+    let mut acc = 0u32;
+    for o in out.chunks_exact_mut(W) {
+        acc = acc.wrapping_add(load::<W>(o));
+        store::<W>(acc, o);
     }
 }
 
 /// The delta filter in place: each sample minus the one before it
 /// (wrapping), the first kept.
 fn delta_wrapping(out: &mut [u8], width: usize) {
-    match width {
-        1 => {
-            let mut prev = 0u8;
-            for o in out.iter_mut() {
-                let v = *o;
-                *o = v.wrapping_sub(prev);
-                prev = v;
-            }
-        }
-        2 => {
-            let mut prev = 0u16;
-            for o in out.chunks_exact_mut(2) {
-                let v = u16::from_le_bytes([o[0], o[1]]);
-                o.copy_from_slice(&v.wrapping_sub(prev).to_le_bytes());
-                prev = v;
-            }
-        }
-        _ => {
-            let mut prev = 0u32;
-            for o in out.chunks_exact_mut(4) {
-                let v = u32::from_le_bytes([o[0], o[1], o[2], o[3]]);
-                o.copy_from_slice(&v.wrapping_sub(prev).to_le_bytes());
-                prev = v;
-            }
-        }
+    with_width!(width, delta_words(out))
+}
+
+fn delta_words<const W: usize>(out: &mut [u8]) {
+    let mut prev = 0u32;
+    for o in out.chunks_exact_mut(W) {
+        let v = load::<W>(o);
+        store::<W>(v.wrapping_sub(prev), o);
+        prev = v;
     }
 }
 
@@ -682,57 +664,36 @@ fn header_samples(h: &Header) -> Option<u64> {
         .checked_mul(h.dims.z as u64)
 }
 
+/// The little-endian unsigned integer of a `W`-byte word, widened.
+#[inline]
+fn load<const W: usize>(b: &[u8]) -> u32 {
+    let mut w = [0u8; 4];
+    w[..W].copy_from_slice(&b[..W]);
+    u32::from_le_bytes(w)
+}
+
+/// Stores the low `W` bytes of `v` (arithmetic modulo 2^(8·W) done in
+/// `u32` and truncated is arithmetic in `W` bytes).
+#[inline]
+fn store<const W: usize>(v: u32, b: &mut [u8]) {
+    b[..W].copy_from_slice(&v.to_le_bytes()[..W]);
+}
+
+fn zip_words<const W: usize>(out: &mut [u8], prev: &[u8], op: impl Fn(u32, u32) -> u32) {
+    for (o, p) in out.chunks_exact_mut(W).zip(prev.chunks_exact(W)) {
+        store::<W>(op(load::<W>(o), load::<W>(p)), o);
+    }
+}
+
 /// `out[i] += prev[i]` for little-endian unsigned integers of `width`
 /// bytes, wrapping.
 fn add_wrapping(out: &mut [u8], prev: &[u8], width: usize) {
-    match width {
-        1 => out
-            .iter_mut()
-            .zip(prev)
-            .for_each(|(o, p)| *o = o.wrapping_add(*p)),
-        2 => out
-            .chunks_exact_mut(2)
-            .zip(prev.chunks_exact(2))
-            .for_each(|(o, p)| {
-                let v =
-                    u16::from_le_bytes([o[0], o[1]]).wrapping_add(u16::from_le_bytes([p[0], p[1]]));
-                o.copy_from_slice(&v.to_le_bytes());
-            }),
-        _ => out
-            .chunks_exact_mut(4)
-            .zip(prev.chunks_exact(4))
-            .for_each(|(o, p)| {
-                let v = u32::from_le_bytes([o[0], o[1], o[2], o[3]])
-                    .wrapping_add(u32::from_le_bytes([p[0], p[1], p[2], p[3]]));
-                o.copy_from_slice(&v.to_le_bytes());
-            }),
-    }
+    with_width!(width, zip_words(out, prev, u32::wrapping_add))
 }
 
 /// `out[i] -= prev[i]`, the inverse of [`add_wrapping`].
 fn sub_wrapping(out: &mut [u8], prev: &[u8], width: usize) {
-    match width {
-        1 => out
-            .iter_mut()
-            .zip(prev)
-            .for_each(|(o, p)| *o = o.wrapping_sub(*p)),
-        2 => out
-            .chunks_exact_mut(2)
-            .zip(prev.chunks_exact(2))
-            .for_each(|(o, p)| {
-                let v =
-                    u16::from_le_bytes([o[0], o[1]]).wrapping_sub(u16::from_le_bytes([p[0], p[1]]));
-                o.copy_from_slice(&v.to_le_bytes());
-            }),
-        _ => out
-            .chunks_exact_mut(4)
-            .zip(prev.chunks_exact(4))
-            .for_each(|(o, p)| {
-                let v = u32::from_le_bytes([o[0], o[1], o[2], o[3]])
-                    .wrapping_sub(u32::from_le_bytes([p[0], p[1], p[2], p[3]]));
-                o.copy_from_slice(&v.to_le_bytes());
-            }),
-    }
+    with_width!(width, zip_words(out, prev, u32::wrapping_sub))
 }
 
 /// Half floats (little-endian bytes) to `f32`, in parallel (`half`'s slice
