@@ -269,7 +269,20 @@ impl NrrdHeader {
             Some(f) if f.starts_with("LIST") || f.split_whitespace().count() > 1 => {
                 return Err(unsupported(path, "data split over several files"));
             }
-            Some(f) => dir.join(f),
+            Some(f) => {
+                let data = dir.join(f);
+                // Only a regular file has a length to check reads against: a
+                // device or a pipe could be read forever.
+                match std::fs::metadata(&data) {
+                    Ok(m) if !m.is_file() => {
+                        return Err(invalid(
+                            path,
+                            format!("data file {} is not a regular file", data.display()),
+                        ));
+                    }
+                    _ => data,
+                }
+            }
         };
         let attached = data_file == path;
         let line_skip: u64 = get("line skip")
@@ -314,23 +327,38 @@ impl NrrdHeader {
     }
 }
 
-/// The byte offset after `n` lines starting at `from` in `path`.
+/// The byte offset after `n` lines starting at `from` in `path`, reading no
+/// further than the file's length as it is now: a data file that never ends
+/// (`/dev/zero`, a pipe) or one long line would otherwise be read forever,
+/// and into memory.
 fn skip_lines(path: &Path, from: u64, n: u64) -> Result<u64> {
-    use std::io::{BufRead, Seek, SeekFrom};
-    let mut f = std::io::BufReader::new(std::fs::File::open(path).map_err(|e| Error::io(path, e))?);
+    use std::io::{BufRead, Read, Seek, SeekFrom};
+    let file = std::fs::File::open(path).map_err(|e| Error::io(path, e))?;
+    let len = file.metadata().map_err(|e| Error::io(path, e))?.len();
+    let mut f = std::io::BufReader::new(file);
     f.seek(SeekFrom::Start(from))
         .map_err(|e| Error::io(path, e))?;
+    let mut f = f.take(len.saturating_sub(from));
     let mut pos = from;
-    let mut line = Vec::new();
     for _ in 0..n {
-        line.clear();
-        let read = f
-            .read_until(b'\n', &mut line)
-            .map_err(|e| Error::io(path, e))?;
-        if read == 0 {
-            return Err(invalid(path, "line skip passes the end of the file"));
+        loop {
+            let buf = f.fill_buf().map_err(|e| Error::io(path, e))?;
+            if buf.is_empty() {
+                return Err(invalid(path, "line skip passes the end of the file"));
+            }
+            match buf.iter().position(|&b| b == b'\n') {
+                Some(i) => {
+                    f.consume(i + 1);
+                    pos += i as u64 + 1;
+                    break;
+                }
+                None => {
+                    let k = buf.len();
+                    f.consume(k);
+                    pos += k as u64;
+                }
+            }
         }
-        pos += read as u64;
     }
     Ok(pos)
 }

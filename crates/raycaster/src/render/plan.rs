@@ -9,6 +9,7 @@ use std::sync::Arc;
 use crate::accel::SkipGrid;
 use crate::camera::{Camera, CameraFrame, PixelRect};
 use crate::error::{Error, Result};
+use crate::geometry::Aabb;
 use crate::integrator::{FrameContext, Integrator, IntegratorVisitor, Occupancy, Phong};
 use crate::scene::Scene;
 use crate::transfer::{TfLut, TransferFunction};
@@ -89,6 +90,78 @@ impl PlanCache {
     }
 }
 
+/// Most samples one ray may take (2²⁰): a volume 10⁶ steps across. More
+/// is a step chosen by mistake (a spacing of 1e-15 beside spacings of 1
+/// makes the default step that small) and would never finish.
+pub const MAX_SAMPLES_PER_RAY: f64 = (1u32 << 20) as f64;
+
+/// How finely f32 must resolve a ray's parameter: consecutive samples
+/// `t_in + k·s` stay at least 2³ ulps apart when `s ≥ t·2⁻²⁰`.
+const T_RESOLUTION: f64 = 1.0 / (1u32 << 20) as f64;
+
+/// Refuses a step that would make a frame take unbounded time or collapse
+/// its sample positions, so every renderer's per-ray counting (done in
+/// f32, see `RaySegment::new`) terminates after at most
+/// [`MAX_SAMPLES_PER_RAY`] samples. Checked in f64 from the box's diagonal
+/// and the camera's distance to its farthest corner.
+pub(crate) fn check_sampling(bounds: &Aabb, eye: glam::Vec3, step: f32) -> Result<()> {
+    if !(step.is_finite() && step > 0.0) {
+        return Err(Error::option(
+            "step",
+            format!("{step} must be finite and > 0"),
+        ));
+    }
+    let (lo, hi) = (bounds.min.as_dvec3(), bounds.max.as_dvec3());
+    let diagonal = (hi - lo).length();
+    if !diagonal.is_finite() {
+        return Err(Error::option(
+            "volume",
+            format!("its extent {} is not finite in f32", hi - lo),
+        ));
+    }
+    let step64 = f64::from(step);
+    let samples = diagonal / step64 + 1.0;
+    if samples > MAX_SAMPLES_PER_RAY {
+        return Err(Error::option(
+            "step",
+            format!(
+                "{} is too small for a volume {diagonal:.3e} world units across: \
+                 a ray could take {samples:.3e} samples (at most {MAX_SAMPLES_PER_RAY}); \
+                 use a step of at least {:.3e}",
+                number(step),
+                diagonal / (MAX_SAMPLES_PER_RAY - 1.0)
+            ),
+        ));
+    }
+    let far = bounds
+        .corners()
+        .iter()
+        .map(|c| (c.as_dvec3() - eye.as_dvec3()).length())
+        .fold(0.0f64, f64::max);
+    if step64 < far * T_RESOLUTION {
+        return Err(Error::option(
+            "step",
+            format!(
+                "{} cannot be resolved in f32 at {far:.3e} world units from the camera \
+                 (needs a step of at least {:.3e}); move the camera closer or use a larger step",
+                number(step),
+                far * T_RESOLUTION
+            ),
+        ));
+    }
+    Ok(())
+}
+
+/// A number for a message: plain when of ordinary size, else in e-notation
+/// (a step of 9e-16 printed plainly is a row of zeros).
+fn number(x: f32) -> String {
+    if x == 0.0 || (1e-4..1e7).contains(&x.abs()) {
+        x.to_string()
+    } else {
+        format!("{x:e}")
+    }
+}
+
 /// Validated per-frame inputs common to every renderer.
 pub struct FramePlan {
     pub camera: CameraFrame,
@@ -134,12 +207,7 @@ impl FramePlan {
             )
         })?;
         let step = options.step_for(grid);
-        if !(step.is_finite() && step > 0.0) {
-            return Err(Error::option(
-                "step",
-                format!("{step} must be finite and > 0"),
-            ));
-        }
+        check_sampling(&grid.bounds(), frame.position(), step)?;
         if !(options.ert_threshold > 0.0 && options.ert_threshold <= 1.0) {
             return Err(Error::option(
                 "ERT threshold",

@@ -40,6 +40,7 @@ pub(super) struct Header {
 
 /// Reads the header of a DICOM file; `None` for a file without an image.
 pub(super) fn read_header(path: &Path) -> Result<Option<Header>> {
+    super::guard::check_lengths(path)?;
     let obj = OpenFileOptions::new()
         .read_until(tags::PIXEL_DATA)
         .open_file(path)

@@ -64,6 +64,8 @@ use crate::error::Result;
 #[cfg(feature = "dicom")]
 mod geometry;
 #[cfg(feature = "dicom")]
+mod guard;
+#[cfg(feature = "dicom")]
 mod header;
 #[cfg(feature = "dicom")]
 mod pixels;

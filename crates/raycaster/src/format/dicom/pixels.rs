@@ -246,7 +246,36 @@ fn read_volume<S: Sample>(
                 format.rows
             ),
         })?;
-    let mut data = vec![S::zeroed(); total];
+    // Rows and Columns come from the file: before allocating for them,
+    // check that every slice's file could hold its pixel data at all.
+    let slice_bytes = (per_slice as u64).saturating_mul(u64::from(format.allocated.bits() / 8));
+    for slice in slices {
+        let path = &slice.header.path;
+        let len = std::fs::metadata(path)
+            .map_err(|e| Error::io(path, e))?
+            .len();
+        if len < slice_bytes {
+            return Err(Error::format(
+                path,
+                FormatError::WrongLength {
+                    expected: slice_bytes,
+                    found: len,
+                    detail: format!(
+                        "a file of {len} bytes cannot hold pixel data of {}x{} {}-bit samples",
+                        format.columns,
+                        format.rows,
+                        format.allocated.bits()
+                    ),
+                },
+            ));
+        }
+    }
+    let mut data = Vec::new();
+    data.try_reserve_exact(total).map_err(|_| Error::TooLarge {
+        path: slices[0].header.path.clone(),
+        what: format!("{total} samples of pixel data"),
+    })?;
+    data.resize(total, S::zeroed());
     let read = std::sync::atomic::AtomicUsize::new(0);
     data.par_chunks_mut(per_slice)
         .zip(slices.par_iter())

@@ -208,6 +208,11 @@ struct Synth {
     words: Vec<u16>,
     /// Image Orientation (Patient), written with `{}`.
     orientation: [f64; 6],
+    /// Rows and Columns written as UL with these values instead of US 3, 4.
+    dims_ul: Option<(u32, u32)>,
+    /// A sequence holding one item with a Red Palette LUT Data (OW) element
+    /// of these bytes, before the pixel data.
+    nested: Option<Vec<u8>>,
 }
 
 /// Row direction, column direction; normal = row x col.
@@ -227,6 +232,8 @@ impl Synth {
             as_ob: false,
             words: (0..12).map(|i| (instance as u16) * 100 + i).collect(),
             orientation: ORIENT,
+            dims_ul: None,
+            nested: None,
         }
     }
 
@@ -253,14 +260,31 @@ impl Synth {
             ),
             us(tags::SAMPLES_PER_PIXEL, 1),
             s(tags::PHOTOMETRIC_INTERPRETATION, VR::CS, "MONOCHROME2"),
-            us(tags::ROWS, 3),
-            us(tags::COLUMNS, 4),
             s(tags::PIXEL_SPACING, VR::DS, "0.5\\0.75"),
             us(tags::BITS_ALLOCATED, self.bits),
             us(tags::BITS_STORED, self.stored),
             us(tags::HIGH_BIT, self.stored - 1),
             us(tags::PIXEL_REPRESENTATION, self.signed as u16),
         ];
+        match self.dims_ul {
+            None => elements.extend([us(tags::ROWS, 3), us(tags::COLUMNS, 4)]),
+            Some((rows, columns)) => elements.extend([
+                DataElement::new(tags::ROWS, VR::UL, PrimitiveValue::from(rows)),
+                DataElement::new(tags::COLUMNS, VR::UL, PrimitiveValue::from(columns)),
+            ]),
+        }
+        if let Some(bytes) = &self.nested {
+            let item = InMemDicomObject::from_element_iter([DataElement::new(
+                tags::RED_PALETTE_COLOR_LOOKUP_TABLE_DATA,
+                VR::OW,
+                PrimitiveValue::from(bytes.clone()),
+            )]);
+            elements.push(DataElement::new(
+                tags::REFERENCED_IMAGE_SEQUENCE,
+                VR::SQ,
+                dicom_core::value::DataSetSequence::from(vec![item]),
+            ));
+        }
         if let Some((slope, intercept)) = self.rescale {
             elements.push(s(tags::RESCALE_INTERCEPT, VR::DS, intercept));
             elements.push(s(tags::RESCALE_SLOPE, VR::DS, slope));
@@ -481,4 +505,86 @@ fn slice_spacing_has_no_float_noise() {
     assert_eq!(o.info.spacing, Vec3::new(0.75, 0.5, 3.0));
     assert_eq!(o.volume.grid().spacing, o.info.spacing);
     assert!(o.info.notes.is_empty(), "{:?}", o.info.notes);
+}
+
+// ------------------------------------------- hostile headers
+
+/// Overwrites the 32-bit length of the first element with tag `(group,
+/// element)` in a file written in `ts`, and returns the patched bytes.
+fn with_length(bytes: &[u8], ts: &str, group: u16, element: u16, length: u32) -> Vec<u8> {
+    let big = ts == EXPLICIT_BE;
+    let tag: Vec<u8> = if big {
+        [group.to_be_bytes(), element.to_be_bytes()].concat()
+    } else {
+        [group.to_le_bytes(), element.to_le_bytes()].concat()
+    };
+    // Past the file meta group (always little endian), so the search
+    // starts at the dataset.
+    let at = bytes[132..]
+        .windows(4)
+        .position(|w| w == tag.as_slice())
+        .expect("tag present")
+        + 132;
+    // Implicit VR: tag, 32-bit length. Explicit VR with a 32-bit length:
+    // tag, VR, 2 reserved bytes, length.
+    let field = if ts == IMPLICIT_LE { at + 4 } else { at + 8 };
+    let mut out = bytes.to_vec();
+    let l = if big {
+        length.to_be_bytes()
+    } else {
+        length.to_le_bytes()
+    };
+    out[field..field + 4].copy_from_slice(&l);
+    out
+}
+
+/// Elements that claim gigabytes in a file of a few hundred bytes, at the
+/// top level (the pixel data) and inside a sequence's item, are refused
+/// by the length walk before the parser reserves and zeroes them.
+#[test]
+fn lengths_beyond_the_file_are_refused_before_parsing() {
+    for ts in [EXPLICIT_LE, IMPLICIT_LE, EXPLICIT_BE] {
+        let dir = TempDir::new();
+        let mut synth = Synth::new(ts, 1, 0.0);
+        synth.nested = Some(vec![7; 8]);
+        let path = dir.0.join("s.dcm");
+        synth.write(&path);
+        let good = std::fs::read(&path).unwrap();
+        assert!(open(&path).is_ok(), "{ts}: the unpatched file opens");
+        for (what, group, element) in [
+            ("pixel data", 0x7FE0, 0x0010),
+            ("nested LUT data", 0x0028, 0x1201),
+        ] {
+            let bad = with_length(&good, ts, group, element, 0xF000_0000);
+            std::fs::write(&path, &bad).unwrap();
+            let start = std::time::Instant::now();
+            let e = open(&path).expect_err(what).to_string();
+            assert!(
+                e.contains("declares 4026531840 bytes but only") && e.contains("s.dcm"),
+                "{ts} {what}: {e}"
+            );
+            assert!(!e.contains('\n'), "{e}");
+            // Not a timing test of speed: zeroing 4 GB would take seconds.
+            assert!(start.elapsed().as_secs() < 2, "{ts} {what}");
+        }
+    }
+}
+
+/// Rows and Columns of 2^31 − 1 (as UL) in a small file: an error naming
+/// the file before anything is allocated for them, not an abort.
+#[test]
+fn huge_rows_and_columns_are_refused_before_allocating() {
+    for ts in [EXPLICIT_LE, IMPLICIT_LE] {
+        let dir = TempDir::new();
+        let mut synth = Synth::new(ts, 1, 0.0);
+        synth.dims_ul = Some((i32::MAX as u32, i32::MAX as u32));
+        let path = dir.0.join("s.dcm");
+        synth.write(&path);
+        let e = open(&path).expect_err("huge image").to_string();
+        assert!(e.contains("s.dcm") && !e.contains('\n'), "{ts}: {e}");
+        assert!(
+            e.contains("cannot hold pixel data") || e.contains("exceed") || e.contains("too large"),
+            "{ts}: {e}"
+        );
+    }
 }

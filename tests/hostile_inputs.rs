@@ -1,0 +1,151 @@
+//! Files that parse but would make a reader or a renderer run forever or
+//! allocate without bound (found by fuzzing, issue 17): each now gives a
+//! one-line error, or renders in bounded time, through the public path.
+//!
+//! Every case runs on its own thread with a deadline, so a regression
+//! fails the test instead of hanging the suite.
+
+mod common;
+
+use std::path::{Path, PathBuf};
+use std::sync::mpsc;
+use std::time::Duration;
+
+use common::TempDir;
+use common::file_bytes::{NiiHeader, nrrd_header, vol_header};
+use glam::{UVec3, Vec3};
+use raycaster::format::{self as fmt, Endian, OpenOptions};
+use raycaster::prelude::*;
+
+/// Far longer than any case takes; a hang before the fix never ended.
+const DEADLINE: Duration = Duration::from_secs(60);
+
+/// Runs `f` on a thread; panics if it does not finish by the deadline.
+fn bounded<T: Send + 'static>(what: &str, f: impl FnOnce() -> T + Send + 'static) -> T {
+    let (tx, rx) = mpsc::channel();
+    std::thread::spawn(move || {
+        let _ = tx.send(f());
+    });
+    rx.recv_timeout(DEADLINE)
+        .unwrap_or_else(|e| panic!("{what}: did not finish in {DEADLINE:?} ({e})"))
+}
+
+/// Opens `path` and renders a 16×16 frame with `kind` from the default
+/// framing camera (and `step` when given); the error's text on failure.
+fn open_and_render(path: PathBuf, kind: RendererKind, step: Option<f32>) -> Result<Frame, String> {
+    let opened = fmt::open_file(&path, &OpenOptions::default()).map_err(|e| e.to_string())?;
+    let scene = Scene::new(opened.volume);
+    let camera = Camera::framing(&scene.grid().bounds(), 16, 16, 30.0);
+    let options = RenderOptions {
+        step,
+        ..RenderOptions::default()
+    };
+    let tf = TransferFunction::preset("ramp", SampleType::U8).expect("ramp preset");
+    kind.renderer(2)
+        .map_err(|e| e.to_string())?
+        .render(&scene, &camera, &tf, &options)
+        .map_err(|e| e.to_string())
+}
+
+/// A 6×5×4 volume of varied u8 samples with `spacing`, in three formats.
+fn files_with_spacing(dir: &Path, spacing: [f32; 3]) -> Vec<PathBuf> {
+    let dims = UVec3::new(6, 5, 4);
+    let data: Vec<u8> = (0..120u32).map(|i| (i * 37 % 251) as u8).collect();
+    let vol = dir.join("v.vol");
+    std::fs::write(
+        &vol,
+        [vol_header(dims.to_array(), spacing, 1, 0), data.clone()].concat(),
+    )
+    .unwrap();
+    let nii = dir.join("v.nii");
+    let header = NiiHeader::new(
+        dims,
+        Vec3::from_array(spacing),
+        SampleType::U8,
+        Endian::Little,
+    );
+    std::fs::write(&nii, header.file(&data)).unwrap();
+    let nrrd = dir.join("v.nrrd");
+    let head = nrrd_header(&[
+        ("type", "uchar"),
+        ("dimension", "3"),
+        ("sizes", "6 5 4"),
+        (
+            "spacings",
+            &format!("{:e} {:e} {:e}", spacing[0], spacing[1], spacing[2]),
+        ),
+        ("encoding", "raw"),
+    ]);
+    std::fs::write(&nrrd, [head.into_bytes(), data].concat()).unwrap();
+    vec![vol, nii, nrrd]
+}
+
+/// Spacings whose default step would take ~10¹⁶ samples a ray, or whose
+/// samples f32 cannot tell apart, hung every renderer: now a one-line
+/// error about the step, from every format and renderer; the step it
+/// suggests renders.
+#[test]
+fn extreme_spacings_get_a_step_error_not_a_hang() {
+    let dir = TempDir::new("hostile-spacing");
+    for spacing in [[1.0, 1.5, 1.8e-15], [1e17, 1e17, 1.0], [1.0, 1.5, 1e-6]] {
+        for path in files_with_spacing(&dir.0, spacing) {
+            for kind in RendererKind::ALL {
+                let what = format!("{} {spacing:?} {kind:?}", path.display());
+                let p = path.clone();
+                let result = bounded(&what, move || open_and_render(p, kind, None));
+                let e = result.err().unwrap_or_else(|| panic!("{what}: rendered"));
+                assert!(e.contains("step") && !e.contains('\n'), "{what}: {e}");
+            }
+        }
+    }
+    // A step the volume can take renders (the flat volume seen edge-on
+    // may cover no pixel; it must finish).
+    for path in files_with_spacing(&dir.0, [1.0, 1.5, 1.8e-15]) {
+        let what = format!("{} with a step of 0.01", path.display());
+        let p = path.clone();
+        bounded(&what, move || {
+            open_and_render(p, RendererKind::Object, Some(0.01))
+        })
+        .unwrap_or_else(|e| panic!("{what}: {e}"));
+    }
+}
+
+/// `line skip` on a data file that never ends (`/dev/zero`) read forever
+/// into memory; a data file that is not a regular file is now refused, and
+/// skipping past a regular file's end is an error.
+#[test]
+fn line_skip_is_bounded_by_the_data_file() {
+    let dir = TempDir::new("hostile-lineskip");
+    let fields = |data_file: &str| {
+        nrrd_header(&[
+            ("type", "uchar"),
+            ("dimension", "3"),
+            ("sizes", "2 2 2"),
+            ("encoding", "raw"),
+            ("line skip", "1"),
+            ("data file", data_file),
+        ])
+    };
+    let mut cases = vec![];
+    if Path::new("/dev/zero").exists() {
+        let nhdr = dir.join("zero.nhdr");
+        std::fs::write(&nhdr, fields("/dev/zero")).unwrap();
+        cases.push((nhdr, "not a regular file"));
+    }
+    // A regular data file of one line with no newline.
+    std::fs::write(dir.join("one_line.raw"), vec![b'x'; 1 << 16]).unwrap();
+    let nhdr = dir.join("long.nhdr");
+    std::fs::write(&nhdr, fields("one_line.raw")).unwrap();
+    cases.push((nhdr, "line skip passes the end of the file"));
+    for (path, expect) in cases {
+        let what = path.display().to_string();
+        let p = path.clone();
+        let e = bounded(&what, move || {
+            fmt::open_file(&p, &OpenOptions::default())
+                .map(|_| ())
+                .map_err(|e| e.to_string())
+        })
+        .expect_err(&what);
+        assert!(e.contains(expect) && !e.contains('\n'), "{what}: {e}");
+    }
+}
