@@ -149,3 +149,77 @@ fn line_skip_is_bounded_by_the_data_file() {
         assert!(e.contains(expect) && !e.contains('\n'), "{what}: {e}");
     }
 }
+
+/// A mapped volume whose file another program truncates would crash the
+/// process with SIGBUS on the next frame: every renderer now checks the
+/// open file first and refuses with an error naming it. A file replaced by
+/// renaming a new one over it (how this library writes) keeps rendering
+/// the old contents from the still-open file.
+#[test]
+fn a_mapped_file_changed_on_disk_is_refused_not_a_crash() {
+    let dir = TempDir::new("hostile-mapped");
+    let dims = [24u32, 20, 16];
+    let data: Vec<u8> = (0..24 * 20 * 16u32).map(|i| (i * 7 % 253) as u8).collect();
+    let bytes = [vol_header(dims, [1.0; 3], 1, 0), data].concat();
+    let options = OpenOptions {
+        mode: LoadMode::Map,
+        ..OpenOptions::default()
+    };
+    let tf = TransferFunction::preset("ramp", SampleType::U8).expect("ramp preset");
+    let render = |scene: &Scene, kind: RendererKind| {
+        let camera = Camera::framing(&scene.grid().bounds(), 24, 24, 30.0);
+        kind.renderer(2)
+            .expect("renderer")
+            .render(scene, &camera, &tf, &RenderOptions::default())
+            .map_err(|e| e.to_string())
+    };
+    let open = |path: &Path| {
+        let opened = fmt::open_file(path, &options).expect("open");
+        assert_eq!(
+            opened.volume.storage_kind(),
+            raycaster::storage::StorageKind::Mapped
+        );
+        Scene::new(opened.volume)
+    };
+
+    // Truncated in place.
+    let path = dir.join("truncated.vol");
+    std::fs::write(&path, &bytes).unwrap();
+    let scene = open(&path);
+    render(&scene, RendererKind::Serial).expect("before the change");
+    std::fs::OpenOptions::new()
+        .write(true)
+        .open(&path)
+        .unwrap()
+        .set_len(100)
+        .unwrap();
+    for kind in RendererKind::ALL {
+        let e = render(&scene, kind).expect_err("truncated");
+        assert!(
+            e.contains("truncated.vol") && e.contains("changed on disk"),
+            "{kind:?}: {e}"
+        );
+    }
+
+    // Rewritten in place, same length: the skip data would be stale.
+    let path = dir.join("rewritten.vol");
+    std::fs::write(&path, &bytes).unwrap();
+    let scene = open(&path);
+    std::thread::sleep(Duration::from_millis(20));
+    let mut other = bytes.clone();
+    other[26..].iter_mut().for_each(|b| *b = 255 - *b);
+    std::fs::write(&path, &other).unwrap();
+    let e = render(&scene, RendererKind::Object).expect_err("rewritten");
+    assert!(e.contains("rewritten.vol") && e.contains("modified"), "{e}");
+
+    // Replaced by rename: the open file is the old one, intact.
+    let path = dir.join("replaced.vol");
+    std::fs::write(&path, &bytes).unwrap();
+    let scene = open(&path);
+    let before = render(&scene, RendererKind::Serial).expect("before");
+    let tmp = dir.join("replaced.vol.tmp");
+    std::fs::write(&tmp, &other).unwrap();
+    std::fs::rename(&tmp, &path).unwrap();
+    let after = render(&scene, RendererKind::Serial).expect("after a rename");
+    assert_eq!(before.rgb, after.rgb, "the old contents still render");
+}

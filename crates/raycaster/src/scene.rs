@@ -178,6 +178,14 @@ impl Scene {
     pub fn value_range(&self) -> (f32, f32) {
         self.value_range
     }
+
+    /// An error when the volume is a mapped file that another program has
+    /// truncated or modified since it was opened (reading it could crash
+    /// the process with SIGBUS, or render stale skip data); see
+    /// `storage::Source`. Every renderer checks it before each frame.
+    pub fn check_source(&self) -> Result<()> {
+        self.volume.storage().check_source()
+    }
 }
 
 /// How [`Scene::open`] and [`Scene::with_options`] make the acceleration

@@ -49,8 +49,8 @@ pub struct Storage {
 enum Owner {
     /// A `Vec<S>` of the storage's sample type (type-erased; only dropped).
     Vec(Box<dyn std::any::Any + Send + Sync>),
-    /// A file mapped read-only.
-    Mapped(memmap2::Mmap),
+    /// A file mapped read-only, with what [`Storage::check_source`] needs.
+    Mapped(memmap2::Mmap, Source),
     /// RAM from an anonymous map (huge-page friendly), read-only.
     Anonymous(memmap2::Mmap),
 }
@@ -135,7 +135,8 @@ impl Storage {
                 let _ = map.advise(memmap2::Advice::WillNeed);
                 let ptr = mapped.as_ptr();
                 if (ptr as usize).is_multiple_of(sample_type.size()) {
-                    return Ok(storage(Owner::Mapped(map), ptr));
+                    let source = Source::new(file, path, end as u64);
+                    return Ok(storage(Owner::Mapped(map, source), ptr));
                 }
                 // Misaligned for the type: copy once into page-aligned RAM
                 // rather than read unaligned in the hot loop.
@@ -186,7 +187,7 @@ impl Storage {
     /// nothing for samples in RAM, or where the system refuses.
     pub fn release_pages(&self, bytes: std::ops::Range<usize>) {
         #[cfg(unix)]
-        if let Owner::Mapped(map) = &self.owner {
+        if let Owner::Mapped(map, _) = &self.owner {
             // A multiple of every page size in use (4, 16 and 64 KiB), so
             // that the range is page-aligned wherever this runs.
             const PAGE: usize = 1 << 16;
@@ -216,6 +217,16 @@ impl Storage {
         let _ = bytes;
     }
 
+    /// For a mapped file: an error when the file was changed in place since
+    /// it was mapped (see [`Source`]); always `Ok` for samples in RAM. The
+    /// frame driver calls it before every frame (one `fstat`).
+    pub fn check_source(&self) -> Result<()> {
+        match &self.owner {
+            Owner::Mapped(_, source) => source.check(),
+            _ => Ok(()),
+        }
+    }
+
     /// Number of samples.
     pub fn len(&self) -> usize {
         self.len
@@ -234,7 +245,7 @@ impl Storage {
     /// Whether the samples are in RAM or mapped from a file.
     pub fn kind(&self) -> StorageKind {
         match self.owner {
-            Owner::Mapped(_) => StorageKind::Mapped,
+            Owner::Mapped(..) => StorageKind::Mapped,
             Owner::Vec(_) | Owner::Anonymous(_) => StorageKind::Ram,
         }
     }
@@ -319,5 +330,60 @@ mod tests {
             );
         }
         std::fs::remove_dir_all(&dir).ok();
+    }
+}
+
+/// The file behind a mapping, to notice when another program changes it.
+///
+/// Reading a mapped page past the end of a file that was truncated after
+/// mapping raises SIGBUS and kills the process; a file rewritten in place
+/// shows new bytes under a macrocell grid built from the old ones. So before
+/// each frame the open file is `fstat`ed: a length below the mapped range or
+/// a new modification time is an error ("reopen it") instead of a crash or
+/// a wrong image. Replacing the file by renaming a new one over it (as this
+/// library's writers do) leaves the open file, and so the mapping, intact:
+/// it keeps rendering the old contents. What remains is a race: a file
+/// truncated *during* a frame can still fault that frame.
+#[derive(Debug)]
+pub(crate) struct Source {
+    file: File,
+    path: std::path::PathBuf,
+    /// The end of the mapped samples, in bytes from the file's start.
+    end: u64,
+    modified: Option<std::time::SystemTime>,
+}
+
+impl Source {
+    fn new(file: File, path: &Path, end: u64) -> Self {
+        let modified = file.metadata().and_then(|m| m.modified()).ok();
+        Source {
+            file,
+            path: path.to_path_buf(),
+            end,
+            modified,
+        }
+    }
+
+    fn check(&self) -> Result<()> {
+        let meta = self.file.metadata().map_err(|e| Error::io(&self.path, e))?;
+        let changed = |what: String| {
+            Error::format(
+                &self.path,
+                crate::error::FormatError::Invalid(format!(
+                    "the file changed on disk since it was opened ({what}); open it again"
+                )),
+            )
+        };
+        if meta.len() < self.end {
+            return Err(changed(format!(
+                "now {} bytes, its samples need {}",
+                meta.len(),
+                self.end
+            )));
+        }
+        if meta.modified().ok() != self.modified {
+            return Err(changed("modified".into()));
+        }
+        Ok(())
     }
 }

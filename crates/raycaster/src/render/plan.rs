@@ -191,6 +191,7 @@ impl FramePlan {
                 ),
             ));
         }
+        scene.check_source()?;
         let grid = scene.grid();
         let frame = camera.frame().ok_or_else(|| {
             Error::option(

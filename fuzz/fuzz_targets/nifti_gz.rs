@@ -1,0 +1,9 @@
+//! libFuzzer target `nifti_gz`: see `Target::NiftiGz` in `src/harness.rs`.
+#![no_main]
+
+use libfuzzer_sys::fuzz_target;
+use raycaster_fuzz::{Target, run};
+
+fuzz_target!(|data: &[u8]| {
+    run(Target::NiftiGz, data);
+});
