@@ -49,7 +49,7 @@ pub fn orbit(camera: &Camera, center: Vec3, axis: TurnAxis, angle: f32) -> Camer
         position: center + q * (camera.position - center),
         target: center + q * (camera.target - center),
         up: q * camera.up,
-        ..camera.clone()
+        ..*camera
     }
 }
 

@@ -89,6 +89,10 @@ pub struct ViewerApp {
     pub(super) canvas_aspect: f32,
     /// Every volume opened skips the macrocell cache (`--no-cache`).
     no_cache: bool,
+    /// Slice views and the layout of the central area.
+    pub(super) slices: super::slices::SliceViews,
+    /// The turntable export window and its job.
+    pub(super) export: super::export::Export,
 }
 
 impl ViewerApp {
@@ -124,6 +128,8 @@ impl ViewerApp {
             last_scroll: None,
             canvas_aspect: 1.0,
             no_cache: start.no_cache,
+            slices: Default::default(),
+            export: Default::default(),
         };
         match &start.file {
             Some(p) => app.open_with(p, start.raw.clone()),
@@ -314,7 +320,8 @@ impl ViewerApp {
         if self.timeline.is_some() {
             egui::Panel::bottom("timeline").show(ui, |ui| self.timeline_bar(ui));
         }
-        egui::CentralPanel::default().show(ui, |ui| self.canvas(ui));
+        self.export_window(ui);
+        egui::CentralPanel::default().show(ui, |ui| self.central(ui));
     }
 
     fn take_dropped_files(&mut self, ctx: &egui::Context) {
@@ -345,6 +352,10 @@ impl ViewerApp {
             Purpose::LoadTf => self.load_tf_file(&path),
             Purpose::SaveTf => self.save_tf_file(&path),
             Purpose::SavePng => self.save_frame_png(&path),
+            Purpose::ExportTurntable => {
+                self.export.path = path.display().to_string();
+                return;
+            }
         };
         match result {
             Ok(()) if !matches!(purpose, Purpose::OpenVolume | Purpose::OpenFolder) => {
