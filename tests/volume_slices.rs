@@ -128,3 +128,53 @@ fn the_value_under_a_point_is_the_trilinear_interpolation() {
     assert_eq!(value_at(&volume, Vec3::new(-1.0, 0.0, 0.0)), None);
     assert_eq!(value_at(&volume, Vec3::new(0.0, 0.0, 16.0)), None);
 }
+
+/// Timing and pages touched of the three slices of a large file, mapped:
+/// `SLICE_FILE=big.vol cargo test --release --test volume_slices -- --ignored --nocapture`
+/// (drop the file from the page cache first to see a cold read, e.g. with
+/// `python3 -c "import os; f=os.open('big.vol', os.O_RDONLY); os.posix_fadvise(f, 0, 0, os.POSIX_FADV_DONTNEED)"`).
+#[test]
+#[ignore = "a measurement on a file given by SLICE_FILE"]
+fn slice_timing() {
+    let Some(path) = std::env::var_os("SLICE_FILE") else {
+        eprintln!("set SLICE_FILE to a volume file");
+        return;
+    };
+    // Resident file-backed memory of this process (kB): grows with every
+    // page of the mapping a slice faults in.
+    let rss_file = || {
+        std::fs::read_to_string("/proc/self/status")
+            .ok()
+            .and_then(|s| {
+                s.lines()
+                    .find(|l| l.starts_with("RssFile:"))
+                    .and_then(|l| l.split_whitespace().nth(1)?.parse::<u64>().ok())
+            })
+            .unwrap_or(0)
+    };
+    let volume = raycaster::format::open(std::path::Path::new(&path), LoadMode::Map).unwrap();
+    let bytes = volume.memory_bytes();
+    let centre = volume.grid().bounds().center();
+    eprintln!(
+        "{}: {} {:?}, {} MB",
+        std::path::Path::new(&path).display(),
+        volume.grid().dims,
+        volume.layout(),
+        bytes >> 20
+    );
+    for axis in SliceAxis::ALL {
+        for pass in ["first", "again"] {
+            let before = rss_file();
+            let t = std::time::Instant::now();
+            let s = slice_image(&volume, axis, centre[axis.normal()]);
+            let ms = t.elapsed().as_secs_f64() * 1e3;
+            let touched = rss_file().saturating_sub(before);
+            eprintln!(
+                "{axis:?} {}x{} {pass}: {ms:.2} ms, {touched} kB of the file faulted in ({:.1} % of it)",
+                s.width,
+                s.height,
+                100.0 * (touched * 1024) as f64 / bytes as f64
+            );
+        }
+    }
+}
