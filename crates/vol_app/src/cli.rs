@@ -16,7 +16,8 @@ use raycaster::prelude::{RenderMode, RendererKind, TaskOrder};
 #[command(
     after_help = "Without a subcommand the interactive viewer opens on FILE, or on the \
 built-in demo volume.\n\nViewer controls: left drag orbits, right drag pans, the wheel zooms, \
-double-click resets the camera; drop a file on the window to open it."
+double-click resets the camera; drop a file on the window to open it. In a slice view, left \
+click or drag moves the cursor, right drag sets window (horizontally) and level (vertically)."
 )]
 pub struct Cli {
     /// What to do; without a subcommand the interactive viewer opens.
@@ -48,6 +49,10 @@ pub struct ViewerArgs {
     /// opened (see `vol_app render --help`).
     #[arg(long)]
     pub no_cache: bool,
+    /// What the viewer shows: the 3D view, the axial/coronal/sagittal
+    /// slices, or both (2x2); switchable in the window.
+    #[arg(long, value_enum, value_name = "3d|slices|2x2")]
+    pub layout: Option<vol_app::viewer::slices::Layout>,
 }
 
 /// Subcommands.

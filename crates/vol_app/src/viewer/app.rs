@@ -37,6 +37,8 @@ pub struct StartOptions {
     pub raw: Option<raycaster::format::RawOptions>,
     /// Neither read nor write macrocell cache files (`--no-cache`).
     pub no_cache: bool,
+    /// The layout to start in (`--layout`); 3D only by default.
+    pub layout: Option<super::slices::Layout>,
 }
 
 /// The volume on screen.
@@ -131,6 +133,7 @@ impl ViewerApp {
             slices: Default::default(),
             export: Default::default(),
         };
+        app.slices.layout = start.layout.unwrap_or_default();
         match &start.file {
             Some(p) => app.open_with(p, start.raw.clone()),
             None => app.open_demo(),

@@ -24,15 +24,17 @@ use raycaster::volume::slice::{SliceAxis, SliceImage, sampled_quantiles, slice_i
 
 use super::app::ViewerApp;
 
-/// What the central area shows.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+/// What the central area shows (`vol_app --layout`).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, clap::ValueEnum)]
 pub enum Layout {
     /// The 3D view only.
     #[default]
+    #[value(name = "3d")]
     View3d,
     /// The three slices only.
     Slices,
     /// 2×2: the 3D view and the three slices.
+    #[value(name = "2x2")]
     Grid,
 }
 
