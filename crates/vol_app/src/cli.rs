@@ -327,7 +327,7 @@ pub struct RenderArgs {
     /// default) orbits the volume's centre about --axis, keeping its
     /// distance and elevation; --out DIR/ writes frame_0000.png, ...,
     /// --out FILE.gif one looping animated GIF.
-    #[arg(long, value_name = "N", value_parser = clap::value_parser!(u32).range(1..=100_000), conflicts_with_all = ["frames", "repeat", "progressive"])]
+    #[arg(long, value_name = "N", value_parser = clap::value_parser!(u32).range(1..=100_000), conflicts_with_all = ["frames", "repeat", "progressive", "stats"])]
     pub turntable: Option<u32>,
     /// The world axis the turntable turns about (right-handed).
     #[arg(long, value_enum, value_name = "x|y|z", default_value_t = vol_app::turntable::TurnAxis::Y, requires = "turntable")]

@@ -328,6 +328,9 @@ impl ViewerApp {
             s.auto = None;
             s.auto_scene = scene_id;
             s.hover = None;
+            for v in &mut s.views {
+                v.image = None;
+            }
             let ct = volume
                 .info
                 .file
@@ -366,6 +369,15 @@ impl ViewerApp {
             match msg {
                 Msg::Slice { view, scene, image } => {
                     let v = &mut s.views[view];
+                    // A slice of the previous frame of a sequence is worth
+                    // showing until the next arrives; one of another grid
+                    // is not.
+                    let (u, w) = image.axis.in_plane();
+                    let dims = volume.scene.grid().dims;
+                    if (image.width, image.height) != (dims[u], dims[w]) {
+                        v.in_flight = false;
+                        continue;
+                    }
                     v.in_flight = false;
                     v.image = Some(Arc::new(image));
                     v.image_scene = scene;
