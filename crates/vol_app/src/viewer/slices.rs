@@ -583,26 +583,47 @@ impl ViewerApp {
         if self.slices.layout == Layout::View3d {
             return;
         }
-        let camera = &shown.frame.camera;
-        let Some(frame) = camera.frame() else {
-            return;
-        };
-        let to_screen = |p: Vec3| {
-            frame.project(p).map(|(i, j)| {
-                egui::pos2(
-                    image_rect.left() + i / camera.width as f32 * image_rect.width(),
-                    image_rect.top() + j / camera.height as f32 * image_rect.height(),
-                )
-            })
-        };
         let arm = 0.08 * volume.scene.grid().extent().length();
-        let c = self.slices.cursor;
-        for (a, dir) in [Vec3::X, Vec3::Y, Vec3::Z].into_iter().enumerate() {
-            if let (Some(p), Some(q)) = (to_screen(c - dir * arm), to_screen(c + dir * arm)) {
-                painter.line_segment([p, q], Stroke::new(2.0, axis_colour(a)));
-            }
+        for (a, [p, q]) in cursor_cross(&shown.frame.camera, self.slices.cursor, arm, image_rect) {
+            painter.line_segment([p, q], Stroke::new(2.0, axis_colour(a)));
         }
     }
+}
+
+/// The cursor's cross in the 3D view: for each world axis (0 = x, 1 = y,
+/// 2 = z) the segment `cursor ± arm·axis` projected through `camera` into
+/// `image_rect` (where the camera's image is drawn); a segment with an end
+/// behind the camera is left out.
+pub fn cursor_cross(
+    camera: &raycaster::camera::Camera,
+    cursor: Vec3,
+    arm: f32,
+    image_rect: Rect,
+) -> Vec<(usize, [Pos2; 2])> {
+    let Some(frame) = camera.frame() else {
+        return Vec::new();
+    };
+    let to_screen = |p: Vec3| {
+        frame.project(p).map(|(i, j)| {
+            egui::pos2(
+                image_rect.left() + i / camera.width as f32 * image_rect.width(),
+                image_rect.top() + j / camera.height as f32 * image_rect.height(),
+            )
+        })
+    };
+    [Vec3::X, Vec3::Y, Vec3::Z]
+        .into_iter()
+        .enumerate()
+        .filter_map(|(a, dir)| {
+            Some((
+                a,
+                [
+                    to_screen(cursor - dir * arm)?,
+                    to_screen(cursor + dir * arm)?,
+                ],
+            ))
+        })
+        .collect()
 }
 
 /// The world position the slice at `want` along `axis` lies at (clamped as
@@ -652,6 +673,33 @@ mod tests {
         assert_eq!(w.grey(40.0), 128);
         assert_eq!(w.grey(80.0), 255);
         assert_eq!(w.grey(-1000.0), 0);
+    }
+
+    #[test]
+    fn the_cursor_cross_is_projected_through_the_camera() {
+        use raycaster::camera::Camera;
+        // From +z looking at the origin, up +y: x is to the right and y up
+        // on screen, z points at the viewer (a dot).
+        let camera = Camera::look_at(Vec3::new(0.0, 0.0, 10.0), Vec3::ZERO, 200, 100);
+        let rect = Rect::from_min_size(egui::pos2(50.0, 20.0), egui::vec2(400.0, 200.0));
+        let cross = cursor_cross(&camera, Vec3::ZERO, 1.0, rect);
+        assert_eq!(cross.len(), 3);
+        let centre = rect.center();
+        let [l, r] = cross[0].1;
+        assert!(l.x < centre.x && r.x > centre.x && (l.y - centre.y).abs() < 1e-3);
+        let [d, u] = cross[1].1;
+        assert!(d.y > centre.y && u.y < centre.y && (d.x - centre.x).abs() < 1e-3);
+        let [b, f] = cross[2].1;
+        assert!(b.distance(centre) < 1e-3 && f.distance(centre) < 1e-3);
+        // Off centre: x = 1 at depth 10 is (1/10)/(tan 22.5°·aspect 2) of
+        // the half width right of the middle (SPEC §3).
+        let cross = cursor_cross(&camera, Vec3::new(1.0, 0.0, 0.0), 0.5, rect);
+        let mid = cross[1].1[0].lerp(cross[1].1[1], 0.5);
+        let h = (22.5f32).to_radians().tan();
+        let want = centre.x + 1.0 / (10.0 * h * 2.0) * 0.5 * rect.width();
+        assert!((mid.x - want).abs() < 0.01, "{} vs {want}", mid.x);
+        // Behind the camera: nothing.
+        assert!(cursor_cross(&camera, Vec3::new(0.0, 0.0, 20.0), 1.0, rect).is_empty());
     }
 
     #[test]
