@@ -16,7 +16,8 @@ use raycaster::prelude::{RenderMode, RendererKind, TaskOrder};
 #[command(
     after_help = "Without a subcommand the interactive viewer opens on FILE, or on the \
 built-in demo volume.\n\nViewer controls: left drag orbits, right drag pans, the wheel zooms, \
-double-click resets the camera; drop a file on the window to open it."
+double-click resets the camera; drop a file on the window to open it. In a slice view, left \
+click or drag moves the cursor, right drag sets window (horizontally) and level (vertically)."
 )]
 pub struct Cli {
     /// What to do; without a subcommand the interactive viewer opens.
@@ -48,6 +49,10 @@ pub struct ViewerArgs {
     /// opened (see `vol_app render --help`).
     #[arg(long)]
     pub no_cache: bool,
+    /// What the viewer shows: the 3D view, the axial/coronal/sagittal
+    /// slices, or both (2x2); switchable in the window.
+    #[arg(long, value_enum, value_name = "3d|slices|2x2")]
+    pub layout: Option<vol_app::viewer::slices::Layout>,
 }
 
 /// Subcommands.
@@ -306,7 +311,8 @@ pub struct RenderArgs {
     /// line). Without it, the built-in demo volume is rendered.
     pub file: Option<PathBuf>,
     /// Output PNG (RGB8). Default: out.png, unless --stats is given. With
-    /// --frames: the directory the frames go to (frame_0000.png, ...).
+    /// --frames: the directory the frames go to (frame_0000.png, ...); with
+    /// --turntable: a directory (DIR/) or an animated GIF (FILE.gif).
     #[arg(long, value_name = "PNG")]
     pub out: Option<PathBuf>,
     /// The frame of a sequence to render (from 0).
@@ -317,6 +323,24 @@ pub struct RenderArgs {
     /// one PNG per frame, --stats prints per-frame decode and render times.
     #[arg(long, value_name = "A..B", value_parser = parse_frames, conflicts_with_all = ["repeat", "progressive"])]
     pub frames: Option<FrameRange>,
+    /// Render N frames of a turntable: the camera (--camera-pos, or the
+    /// default) orbits the volume's centre about --axis, keeping its
+    /// distance and elevation; --out DIR/ writes frame_0000.png, ...,
+    /// --out FILE.gif one looping animated GIF.
+    #[arg(long, value_name = "N", value_parser = clap::value_parser!(u32).range(1..=100_000), conflicts_with_all = ["frames", "repeat", "progressive", "stats"])]
+    pub turntable: Option<u32>,
+    /// The world axis the turntable turns about (right-handed).
+    #[arg(long, value_enum, value_name = "x|y|z", default_value_t = vol_app::turntable::TurnAxis::Y, requires = "turntable")]
+    pub axis: vol_app::turntable::TurnAxis,
+    /// Frames per second of a turntable GIF (GIF delays are whole
+    /// hundredths of a second: 25 is exact, 24 plays at 25).
+    #[arg(
+        long,
+        value_name = "FPS",
+        default_value_t = 25.0,
+        requires = "turntable"
+    )]
+    pub fps: f32,
     /// Image size in pixels.
     #[arg(long, value_name = "WxH", default_value = "700x700", value_parser = parse_size)]
     pub size: (u32, u32),

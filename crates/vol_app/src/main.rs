@@ -69,6 +69,7 @@ fn run_viewer(args: cli::ViewerArgs) -> Result<(), anyhow_like::Error> {
         tf,
         raw,
         no_cache: args.no_cache,
+        layout: args.layout,
     })?;
     Ok(())
 }

@@ -19,6 +19,11 @@ const PLAYBACK_AHEAD: u32 = 3;
 /// Runs the `render` subcommand.
 pub fn run(args: &RenderArgs) -> Result<(), Error> {
     if args.mode == RenderMode::Metaballs {
+        if args.turntable.is_some() {
+            return Err(
+                "--turntable renders volumes; it does not work with --mode metaballs".into(),
+            );
+        }
         return crate::metaballs_cmd::run(args);
     }
     let load_start = Instant::now();
@@ -161,6 +166,17 @@ pub fn run(args: &RenderArgs) -> Result<(), Error> {
             })?)
         }
     };
+    if let Some(frames) = args.turntable {
+        return turntable(
+            args,
+            renderer.as_mut(),
+            &scene,
+            camera,
+            &tf,
+            &options,
+            frames,
+        );
+    }
     if let Some((playback, range)) = playback {
         return play(
             args,
@@ -231,6 +247,51 @@ pub fn run(args: &RenderArgs) -> Result<(), Error> {
             last.stats.samples
         );
     }
+    Ok(())
+}
+
+/// `--turntable N`: N frames orbiting the volume's centre into `--out`
+/// (a directory or a GIF), with a progress bar.
+fn turntable(
+    args: &RenderArgs,
+    renderer: &mut dyn Renderer,
+    scene: &Scene,
+    camera: Camera,
+    tf: &TransferFunction,
+    options: &RenderOptions,
+    frames: u32,
+) -> Result<(), Error> {
+    use vol_app::turntable::{Outcome, Output, Turntable};
+    let path = args
+        .out
+        .as_deref()
+        .ok_or("--turntable needs --out DIR/ (one PNG a frame) or --out FILE.gif")?;
+    let out = Output::from_path(path, args.fps)?;
+    let job = Turntable {
+        scene,
+        camera,
+        center: scene.grid().bounds().center(),
+        axis: args.axis,
+        frames,
+        tf,
+        options,
+    };
+    let progress = crate::progress::bar("turntable");
+    let start = Instant::now();
+    let never = std::sync::atomic::AtomicBool::new(false);
+    let outcome = vol_app::turntable::render(&job, renderer, &out, &never, |done, n| {
+        if let Some(p) = &progress {
+            p.report(done as f32 / n as f32);
+        }
+    })?;
+    debug_assert_eq!(outcome, Outcome::Done);
+    let seconds = start.elapsed().as_secs_f64();
+    let (width, height) = args.size;
+    eprintln!(
+        "vol_app: wrote a {frames}-frame turntable to {} ({width}x{height}, {:.1} frames/s)",
+        path.display(),
+        f64::from(frames) / seconds.max(1e-9)
+    );
     Ok(())
 }
 

@@ -140,7 +140,7 @@ fn open_file(dir: &TempDir) -> (H, PathBuf) {
         tf_preset: Some("shapes".into()),
         tf: None,
         raw: None,
-        no_cache: false,
+        ..Default::default()
     });
     (h, path)
 }

@@ -11,12 +11,14 @@
 //!   [`AnyVolume::visit`] is the one place that picks the concrete type.
 //! - [`Volume`] is what an integrator may ask of a volume: locate a cell,
 //!   load its corners and gradient stencil, interpolate.
+//! - [`slice`] cuts axis-aligned slices for slice views.
 
 mod addressing;
 mod any;
 mod grid;
 mod grid_volume;
 mod ranges;
+pub mod slice;
 
 pub use addressing::{Addressing, AnyAddressing, AxisOrder, BrickGrid, Bricked, Layout, Linear};
 pub use any::{AnyVolume, VolumeVisitor};

@@ -37,6 +37,8 @@ pub struct StartOptions {
     pub raw: Option<raycaster::format::RawOptions>,
     /// Neither read nor write macrocell cache files (`--no-cache`).
     pub no_cache: bool,
+    /// The layout to start in (`--layout`); 3D only by default.
+    pub layout: Option<super::slices::Layout>,
 }
 
 /// The volume on screen.
@@ -89,6 +91,10 @@ pub struct ViewerApp {
     pub(super) canvas_aspect: f32,
     /// Every volume opened skips the macrocell cache (`--no-cache`).
     no_cache: bool,
+    /// Slice views and the layout of the central area.
+    pub(super) slices: super::slices::SliceViews,
+    /// The turntable export window and its job.
+    pub(super) export: super::export::Export,
 }
 
 impl ViewerApp {
@@ -124,7 +130,10 @@ impl ViewerApp {
             last_scroll: None,
             canvas_aspect: 1.0,
             no_cache: start.no_cache,
+            slices: Default::default(),
+            export: Default::default(),
         };
+        app.slices.layout = start.layout.unwrap_or_default();
         match &start.file {
             Some(p) => app.open_with(p, start.raw.clone()),
             None => app.open_demo(),
@@ -314,7 +323,8 @@ impl ViewerApp {
         if self.timeline.is_some() {
             egui::Panel::bottom("timeline").show(ui, |ui| self.timeline_bar(ui));
         }
-        egui::CentralPanel::default().show(ui, |ui| self.canvas(ui));
+        self.export_window(ui);
+        egui::CentralPanel::default().show(ui, |ui| self.central(ui));
     }
 
     fn take_dropped_files(&mut self, ctx: &egui::Context) {
@@ -345,6 +355,10 @@ impl ViewerApp {
             Purpose::LoadTf => self.load_tf_file(&path),
             Purpose::SaveTf => self.save_tf_file(&path),
             Purpose::SavePng => self.save_frame_png(&path),
+            Purpose::ExportTurntable => {
+                self.export.path = path.display().to_string();
+                return;
+            }
         };
         match result {
             Ok(()) if !matches!(purpose, Purpose::OpenVolume | Purpose::OpenFolder) => {

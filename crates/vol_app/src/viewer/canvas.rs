@@ -51,6 +51,7 @@ impl ViewerApp {
             let uv = Rect::from_min_max(egui::pos2(0.0, 0.0), egui::pos2(1.0, 1.0));
             painter.image(s.texture.id(), image_rect, uv, Color32::WHITE);
         }
+        self.draw_cursor_3d(&painter, image_rect);
         let overlay = |text: String| {
             painter.text(
                 rect.center(),
@@ -139,7 +140,7 @@ impl ViewerApp {
 
     /// The full-quality request for what should be on screen for a canvas
     /// of `canvas_px` pixels.
-    fn wanted_view(&self, canvas_px: [u32; 2]) -> Option<RenderRequest> {
+    pub(super) fn wanted_view(&self, canvas_px: [u32; 2]) -> Option<RenderRequest> {
         let volume = self.volume.as_ref()?;
         let s = &self.settings;
         if canvas_px[0] < 8 || canvas_px[1] < 8 {

@@ -22,6 +22,8 @@ pub enum Purpose {
     SaveTf,
     /// Choose where to save the current frame as PNG.
     SavePng,
+    /// Choose the GIF a turntable export writes.
+    ExportTurntable,
 }
 
 /// The dialog runner.
@@ -107,6 +109,11 @@ impl Dialogs {
                         .set_title("Save frame")
                         .add_filter("PNG image", &["png"])
                         .set_file_name("frame.png")
+                        .save_file(),
+                    Purpose::ExportTurntable => d
+                        .set_title("Export turntable")
+                        .add_filter("Animated GIF", &["gif"])
+                        .set_file_name("turntable.gif")
                         .save_file(),
                 };
                 let _ = tx.send((purpose, path));

@@ -13,6 +13,8 @@
 //! | [`progressive`] | previews within a time budget while the view changes, refinement ¼ → ½ → full when still |
 //! | [`timeline`] | a sequence's player: play/pause, loop, speed, step ±1 (N/M), scrub |
 //! | [`dialogs`] | native file dialogs on a background thread |
+//! | [`slices`] | axial, coronal, sagittal slices through a cursor, window/level, readout; the layout switch (3D, slices, 2×2) |
+//! | [`export`] | "Export turntable…": a turntable movie rendered on a background thread, with progress and cancel |
 //!
 //! [`ViewerApp`] runs without a window too: give it an [`egui::Context`] and
 //! call [`ViewerApp::show`] each frame (this is how the UI tests drive it).
@@ -21,10 +23,12 @@ pub mod app;
 pub mod camera_control;
 mod canvas;
 pub mod dialogs;
+pub mod export;
 pub mod loading;
 mod panels;
 pub mod progressive;
 pub mod render_link;
+pub mod slices;
 pub mod state;
 pub mod tf_editor;
 pub mod timeline;
