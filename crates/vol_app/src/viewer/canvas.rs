@@ -127,11 +127,14 @@ impl ViewerApp {
         let Some(planned) = self.progressive.next(changed, interacting, full) else {
             return;
         };
-        let request = RenderRequest {
+        let mut request = RenderRequest {
             level: planned.level,
             preview: planned.stage == Stage::Preview,
             ..view
         };
+        // Jitter is for still frames: noise that moves with every preview
+        // distracts more than banding.
+        request.options.jitter &= !request.preview;
         let id = self.link.request(request.clone());
         self.progressive.sent(id);
         self.last_request = Some(request);
@@ -164,6 +167,9 @@ impl ViewerApp {
                 lights: s.light_directions(),
                 shadows: s.shadows,
                 iso_normals: s.iso_normals,
+                clip: s.clip.clip(&volume.scene.grid().bounds()),
+                gradient_opacity: s.clip.gradient_opacity(),
+                jitter: s.clip.jitter,
                 ..RenderOptions::default()
             },
             renderer: s.renderer,
