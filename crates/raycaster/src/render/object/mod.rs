@@ -14,7 +14,9 @@
 //! 2. **Visibility (ESS).** In DVR with empty-space skipping on, a brick none
 //!    of whose macrocells can show anything under the current TF is never
 //!    queued, and a visible brick is projected with the box of its occupied
-//!    macrocells only (samples outside it are invisible).
+//!    macrocells only (samples outside it are invisible). In every mode, a
+//!    brick that holds no point of the frame's clip region is never queued
+//!    (its rays' samples there lie outside their kept range).
 //! 3. **Order.** Bricks are sorted front to back. For a perspective camera
 //!    the key is the Manhattan distance, in brick coordinates, from the brick
 //!    holding the eye; along any ray from the eye every brick coordinate
