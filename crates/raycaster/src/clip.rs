@@ -206,7 +206,8 @@ impl ClipRegion {
         pos: impl Fn(u32) -> Vec3,
     ) -> (u32, u32) {
         let (a, b) = self.interval(origin, dir);
-        if !(a <= b) || count == 0 {
+        // NaN (a degenerate ray) counts as a miss.
+        if a > b || a.is_nan() || b.is_nan() || count == 0 {
             return (0, 0);
         }
         // `as` saturates: −∞ and NaN give 0, +∞ gives u32::MAX.

@@ -129,8 +129,10 @@ pub struct ClipSettings {
     pub planes: Vec<PlaneSetting>,
     /// Gradient opacity on.
     pub gradient_opacity: bool,
-    /// Gradient magnitudes (data units per world unit) g0 and g1.
+    /// Gradient magnitude (data units per world unit) at and below which
+    /// gradient opacity hides a sample.
     pub g0: f32,
+    /// Gradient magnitude from which a sample keeps the TF's opacity.
     pub g1: f32,
     /// Jittered samples in still frames (previews stay unjittered: moving
     /// noise distracts more than banding while the view changes).
