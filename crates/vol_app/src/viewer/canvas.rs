@@ -127,14 +127,14 @@ impl ViewerApp {
         let Some(planned) = self.progressive.next(changed, interacting, full) else {
             return;
         };
-        let mut request = RenderRequest {
+        // Previews are jittered like the still frames (when jitter is on):
+        // the same view at the same level then gives the same image at
+        // every stage.
+        let request = RenderRequest {
             level: planned.level,
             preview: planned.stage == Stage::Preview,
             ..view
         };
-        // Jitter is for still frames: noise that moves with every preview
-        // distracts more than banding.
-        request.options.jitter &= !request.preview;
         let id = self.link.request(request.clone());
         self.progressive.sent(id);
         self.last_request = Some(request);

@@ -25,8 +25,8 @@ impl ViewerApp {
         section(ui, "Volume", |ui| self.volume_section(ui));
         section(ui, "Transfer function", |ui| self.tf_section(ui));
         section(ui, "Rendering", |ui| self.render_section(ui));
-        section(ui, "Clipping", |ui| self.clip_section(ui));
         section(ui, "Camera", |ui| self.camera_section(ui));
+        section(ui, "Clipping", |ui| self.clip_section(ui));
     }
 
     fn file_section(&mut self, ui: &mut Ui) {
@@ -173,7 +173,7 @@ impl ViewerApp {
     /// and up to three clip planes (normal angles and offset).
     fn clip_section(&mut self, ui: &mut Ui) {
         let c = &mut self.settings.clip;
-        ui.checkbox(&mut c.jitter, "Jitter samples (still frames)")
+        ui.checkbox(&mut c.jitter, "Jitter")
             .on_hover_text("Trades wood-grain banding at coarse steps for fine noise");
         ui.label("Crop box (fraction of the volume):");
         let mut moving = false;

@@ -134,8 +134,8 @@ pub struct ClipSettings {
     pub g0: f32,
     /// Gradient magnitude from which a sample keeps the TF's opacity.
     pub g1: f32,
-    /// Jittered samples in still frames (previews stay unjittered: moving
-    /// noise distracts more than banding while the view changes).
+    /// Jittered samples (in every frame: a view renders the same image at
+    /// every stage of the progressive refinement).
     pub jitter: bool,
 }
 
