@@ -73,6 +73,7 @@ fn lib_options(c: &Case) -> RenderOptions {
     let (mode, iso) = match c.opts.mode {
         RefMode::Dvr => (RenderMode::Dvr, 0.0),
         RefMode::Mip => (RenderMode::Mip, 0.0),
+        RefMode::Minip => (RenderMode::Minip, 0.0),
         RefMode::Avg => (RenderMode::Avg, 0.0),
         RefMode::Iso(v) => (RenderMode::Iso, v as f32),
     };
@@ -89,6 +90,7 @@ fn lib_options(c: &Case) -> RenderOptions {
         shadows: false,
         iso_normals: Default::default(),
         background: common::v3f(c.opts.background),
+        ..RenderOptions::default()
     }
 }
 

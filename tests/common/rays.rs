@@ -89,6 +89,7 @@ impl<'a> RayLab<'a> {
                     shadows: false,
                     iso_normals: Default::default(),
                     avg_norm: 255.0,
+                    gradient_opacity: None,
                 };
                 self.job.run(&ctx, &self.seg)
             }

@@ -338,6 +338,7 @@ impl RefTf {
 pub enum RefMode {
     Dvr,
     Mip,
+    Minip,
     Avg,
     Iso(f64),
 }
@@ -400,6 +401,105 @@ pub fn clip(bmin: V3, bmax: V3, o: V3, d: V3) -> Option<(f64, f64)> {
 /// Integrates one ray (unit direction `d`): samples at `t_k = t_in + k·s`
 /// while `t_k <= t_out`, composited per mode.
 pub fn integrate(vol: &RefVolume, tf: &RefTf, opt: &RefOptions, o: V3, d: V3) -> RefRay {
+    integrate_with(vol, tf, opt, &RefExtras::default(), 0.0, o, d)
+}
+
+// ------------------------------------------- second-wave options (SPEC §8)
+
+/// Clipping, gradient opacity and jitter (SPEC §8), in world coordinates.
+#[derive(Debug, Clone, Default)]
+pub struct RefExtras {
+    /// Keep only samples in `[lo, hi]`.
+    pub clip_box: Option<(V3, V3)>,
+    /// Remove samples at `p` with `n·p > d`.
+    pub planes: Vec<(V3, f64)>,
+    /// `(g0, g1)`: opacity per unit length times
+    /// `clamp((|∇f| − g0)/(g1 − g0), 0, 1)`.
+    pub gradient_opacity: Option<(f64, f64)>,
+    /// Jitter seed (`None`: no jitter).
+    pub jitter_seed: Option<u32>,
+}
+
+impl RefExtras {
+    /// Whether the sample at world point `p` is kept by the clipping rules.
+    pub fn kept(&self, p: V3) -> bool {
+        if let Some((lo, hi)) = self.clip_box
+            && (0..3).any(|a| p[a] < lo[a] || p[a] > hi[a])
+        {
+            return false;
+        }
+        self.planes.iter().all(|&(n, d)| dot(n, p) <= d)
+    }
+}
+
+/// The jitter `j ∈ [0, 1)` of pixel (i, j): the library's documented hash
+/// (`raycaster::integrator::jitter`), typed in again from its description:
+/// mix seed, i, j with three odd constants, three xor-shift-multiply
+/// rounds, the top 24 bits over 2^24.
+pub fn ref_jitter(i: u32, j: u32, seed: u32) -> f64 {
+    let mut h: u32 =
+        seed.wrapping_mul(0x9E3779B9) ^ i.wrapping_mul(0x85EBCA6B) ^ j.wrapping_mul(0xC2B2AE35);
+    for (shift, mul) in [(16, 0x7FEB352Du32), (15, 0x846CA68B)] {
+        h ^= h >> shift;
+        h = h.wrapping_mul(mul);
+    }
+    h ^= h >> 16;
+    (h >> 8) as f64 / 16777216.0
+}
+
+impl RefVolume {
+    /// SPEC §8's gradient at world point `p`: per voxel the central
+    /// differences `(v[i+1] − v[i−1]) / (2·spacing)`, indices clamped to
+    /// the grid, trilinearly interpolated as the values are.
+    pub fn gradient_at(&self, p: V3) -> V3 {
+        let n = self.dims;
+        let voxel_gradient = |x: usize, y: usize, z: usize| -> V3 {
+            let idx = [x, y, z];
+            let mut g = [0.0; 3];
+            for a in 0..3 {
+                let mut lo = idx;
+                let mut hi = idx;
+                lo[a] = idx[a].saturating_sub(1);
+                hi[a] = (idx[a] + 1).min(n[a] - 1);
+                g[a] = (self.at(hi[0], hi[1], hi[2]) - self.at(lo[0], lo[1], lo[2]))
+                    / (2.0 * self.spacing[a]);
+            }
+            g
+        };
+        let mut lo = [0usize; 3];
+        let mut hi = [0usize; 3];
+        let mut frac = [0.0f64; 3];
+        for a in 0..3 {
+            let c = ((p[a] - self.origin[a]) / self.spacing[a]).clamp(0.0, (n[a] - 1) as f64);
+            let i = (c.floor() as usize).min(n[a].saturating_sub(2));
+            lo[a] = i;
+            hi[a] = (i + 1).min(n[a] - 1);
+            frac[a] = c - i as f64;
+        }
+        let mut sum = [0.0; 3];
+        for (ix, wx) in [(lo[0], 1.0 - frac[0]), (hi[0], frac[0])] {
+            for (iy, wy) in [(lo[1], 1.0 - frac[1]), (hi[1], frac[1])] {
+                for (iz, wz) in [(lo[2], 1.0 - frac[2]), (hi[2], frac[2])] {
+                    sum = add(sum, scale(voxel_gradient(ix, iy, iz), wx * wy * wz));
+                }
+            }
+        }
+        sum
+    }
+}
+
+/// [`integrate`] with the SPEC §8 options: samples at
+/// `t_k = t_in + (k + jitter)·s`, clipped samples contribute nothing,
+/// gradient opacity scales the opacity per unit length (DVR).
+pub fn integrate_with(
+    vol: &RefVolume,
+    tf: &RefTf,
+    opt: &RefOptions,
+    ext: &RefExtras,
+    jitter: f64,
+    o: V3,
+    d: V3,
+) -> RefRay {
     let (bmin, bmax) = vol.bounds();
     let mut out = RefRay::default();
     let Some((t_in, t_out)) = clip(bmin, bmax, o, d) else {
@@ -440,20 +540,32 @@ pub fn integrate(vol: &RefVolume, tf: &RefTf, opt: &RefOptions, o: V3, d: V3) ->
         return out;
     }
     let mut max = f64::NEG_INFINITY;
+    let mut min = f64::INFINITY;
     let mut sum = 0.0;
     let mut k = 0u64;
     loop {
-        let t = t_in + k as f64 * s;
+        let t = t_in + (k as f64 + jitter) * s;
         if t > t_out {
             break;
         }
         k += 1;
+        let p = add(o, scale(d, t));
+        if !ext.kept(p) {
+            continue;
+        }
         let v = value(t);
         out.samples += 1;
         match opt.mode {
             RefMode::Dvr => {
                 let e = tf.eval(v);
-                let alpha = 1.0 - (1.0 - e[3]).powf(s);
+                let mut a = e[3];
+                if let Some((g0, g1)) = ext.gradient_opacity
+                    && a > 0.0
+                {
+                    let g = length(vol.gradient_at(p));
+                    a *= ((g - g0) / (g1 - g0)).clamp(0.0, 1.0);
+                }
+                let alpha = 1.0 - (1.0 - a).powf(s);
                 let w = (1.0 - out.alpha) * alpha;
                 for (c, ec) in out.color.iter_mut().zip(e) {
                     *c += w * ec;
@@ -466,6 +578,7 @@ pub fn integrate(vol: &RefVolume, tf: &RefTf, opt: &RefOptions, o: V3, d: V3) ->
                 }
             }
             RefMode::Mip => max = max.max(v),
+            RefMode::Minip => min = min.min(v),
             RefMode::Avg => sum += v,
             RefMode::Iso(_) => unreachable!("iso returns above"),
         }
@@ -473,6 +586,11 @@ pub fn integrate(vol: &RefVolume, tf: &RefTf, opt: &RefOptions, o: V3, d: V3) ->
     match opt.mode {
         RefMode::Mip if out.samples > 0 => {
             let e = tf.eval(max);
+            out.color = [e[0] * e[3], e[1] * e[3], e[2] * e[3]];
+            out.alpha = e[3];
+        }
+        RefMode::Minip if out.samples > 0 => {
+            let e = tf.eval(min);
             out.color = [e[0] * e[3], e[1] * e[3], e[2] * e[3]];
             out.alpha = e[3];
         }
@@ -503,6 +621,26 @@ pub fn render(vol: &RefVolume, cam: &RefCamera, tf: &RefTf, opt: &RefOptions) ->
         for i in 0..cam.width {
             let (o, d) = cam.ray(i, j);
             let r = integrate(vol, tf, opt, o, d);
+            rgb.extend_from_slice(&to_rgb8(&r, opt.background));
+        }
+    }
+    rgb
+}
+
+/// [`render`] with the SPEC §8 options (jitter from the pixel and seed).
+pub fn render_with(
+    vol: &RefVolume,
+    cam: &RefCamera,
+    tf: &RefTf,
+    opt: &RefOptions,
+    ext: &RefExtras,
+) -> Vec<u8> {
+    let mut rgb = Vec::with_capacity(3 * (cam.width * cam.height) as usize);
+    for j in 0..cam.height {
+        for i in 0..cam.width {
+            let (o, d) = cam.ray(i, j);
+            let jit = ext.jitter_seed.map_or(0.0, |seed| ref_jitter(i, j, seed));
+            let r = integrate_with(vol, tf, opt, ext, jit, o, d);
             rgb.extend_from_slice(&to_rgb8(&r, opt.background));
         }
     }

@@ -67,6 +67,7 @@ pub mod accel;
 pub mod camera;
 #[cfg(feature = "clap")]
 pub mod cli;
+pub mod clip;
 pub mod error;
 pub mod format;
 pub mod geometry;

@@ -417,6 +417,23 @@ pub struct RenderArgs {
     /// --mode iso: how the surface normal is found.
     #[arg(long, value_enum, default_value_t = IsoNormals::Gradient)]
     pub normals: IsoNormals,
+    /// Keep only samples inside this world-space box (SPEC §8).
+    #[arg(long, value_name = "X0,Y0,Z0,X1,Y1,Z1", allow_hyphen_values = true, value_parser = parse_clip_box)]
+    pub clip_box: Option<(Vec3, Vec3)>,
+    /// Remove samples at p with n·p > d (world space); repeat for up to 6
+    /// planes.
+    #[arg(long = "clip-plane", value_name = "NX,NY,NZ,D", allow_hyphen_values = true, value_parser = parse_clip_plane)]
+    pub clip_planes: Vec<raycaster::clip::ClipPlane>,
+    /// --mode dvr: scale the TF's opacity by clamp((|∇f| − G0)/(G1 − G0), 0, 1),
+    /// |∇f| the gradient magnitude in data units per world unit.
+    #[arg(long, value_name = "G0,G1", allow_hyphen_values = true, value_parser = parse_gradient_opacity)]
+    pub gradient_opacity: Option<(f32, f32)>,
+    /// Jitter the samples per pixel (trades wood-grain banding for noise).
+    #[arg(long, value_enum, default_value_t = Switch::Off)]
+    pub jitter: Switch,
+    /// Seed of the per-pixel jitter.
+    #[arg(long, value_name = "N", default_value_t = 0)]
+    pub seed: u32,
     /// Early ray termination.
     #[arg(long, value_enum, default_value_t = Switch::On)]
     pub ert: Switch,
@@ -502,6 +519,55 @@ fn parse_vec3(s: &str) -> Result<Vec3, String> {
         }
     }
     Ok(Vec3::from_array(v))
+}
+
+/// `n` comma-separated finite numbers.
+fn parse_numbers(s: &str, n: usize, what: &str) -> Result<Vec<f32>, String> {
+    let parts: Vec<&str> = s.split(',').map(str::trim).collect();
+    if parts.len() != n {
+        return Err(format!("expected {what}, got '{s}'"));
+    }
+    parts
+        .iter()
+        .map(|p| {
+            p.parse::<f32>()
+                .ok()
+                .filter(|v| v.is_finite())
+                .ok_or_else(|| format!("'{p}' is not a finite number"))
+        })
+        .collect()
+}
+
+fn parse_clip_box(s: &str) -> Result<(Vec3, Vec3), String> {
+    let v = parse_numbers(s, 6, "six numbers X0,Y0,Z0,X1,Y1,Z1")?;
+    let (lo, hi) = (Vec3::new(v[0], v[1], v[2]), Vec3::new(v[3], v[4], v[5]));
+    if lo.cmpgt(hi).any() {
+        return Err(format!(
+            "the box is empty: X0,Y0,Z0 = {},{},{} must not exceed X1,Y1,Z1 = {},{},{}",
+            v[0], v[1], v[2], v[3], v[4], v[5]
+        ));
+    }
+    Ok((lo, hi))
+}
+
+fn parse_clip_plane(s: &str) -> Result<raycaster::clip::ClipPlane, String> {
+    let v = parse_numbers(s, 4, "four numbers NX,NY,NZ,D")?;
+    let normal = Vec3::new(v[0], v[1], v[2]);
+    if normal == Vec3::ZERO {
+        return Err("the normal NX,NY,NZ must not be zero".into());
+    }
+    Ok(raycaster::clip::ClipPlane {
+        normal,
+        offset: v[3],
+    })
+}
+
+fn parse_gradient_opacity(s: &str) -> Result<(f32, f32), String> {
+    let v = parse_numbers(s, 2, "two numbers G0,G1")?;
+    if v[0] >= v[1] {
+        return Err(format!("G0 = {} must be below G1 = {}", v[0], v[1]));
+    }
+    Ok((v[0], v[1]))
 }
 
 fn parse_window(s: &str) -> Result<(f32, f32), String> {

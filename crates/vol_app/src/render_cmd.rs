@@ -130,7 +130,24 @@ pub fn run(args: &RenderArgs) -> Result<(), Error> {
         shadows: args.shadows.on(),
         iso_normals: args.normals,
         background: args.background,
+        clip: raycaster::clip::Clip {
+            clip_box: args.clip_box,
+            planes: args.clip_planes.clone(),
+        },
+        gradient_opacity: args
+            .gradient_opacity
+            .map(|(g0, g1)| raycaster::integrator::GradientOpacity { g0, g1 }),
+        jitter: args.jitter.on(),
+        seed: args.seed,
     };
+    if args.clip_planes.len() > raycaster::clip::MAX_CLIP_PLANES {
+        return Err(format!(
+            "--clip-plane given {} times, at most {}",
+            args.clip_planes.len(),
+            raycaster::clip::MAX_CLIP_PLANES
+        )
+        .into());
+    }
     if let Some(s) = args.step
         && !(s.is_finite() && s > 0.0)
     {

@@ -317,6 +317,32 @@ fn bad_arguments_give_one_line_errors() {
             "invalid light: direction",
         ),
         (vec!["--normals", "bumpy"], "bumpy"),
+        (vec!["--clip-box", "5,0,0,4,9,9"], "--clip-box"),
+        (vec!["--clip-box", "1,2,3"], "--clip-box"),
+        (vec!["--clip-plane", "0,0,0,1"], "--clip-plane"),
+        (vec!["--clip-plane", "1,0,nan,1"], "--clip-plane"),
+        (
+            vec![
+                "--clip-plane",
+                "1,0,0,1",
+                "--clip-plane",
+                "1,0,0,2",
+                "--clip-plane",
+                "1,0,0,3",
+                "--clip-plane",
+                "1,0,0,4",
+                "--clip-plane",
+                "1,0,0,5",
+                "--clip-plane",
+                "1,0,0,6",
+                "--clip-plane",
+                "1,0,0,7",
+            ],
+            "--clip-plane",
+        ),
+        (vec!["--gradient-opacity", "5,5"], "--gradient-opacity"),
+        (vec!["--gradient-opacity", "9,2"], "--gradient-opacity"),
+        (vec!["--jitter", "maybe"], "--jitter"),
     ];
     for (args, needle) in cases {
         let out = output(vol_app().args(["render", f]).args(&args).args(["--stats"]));
@@ -332,6 +358,41 @@ fn bad_arguments_give_one_line_errors() {
             .arg(&bad_tf),
     );
     assert_one_line_error(&out, "bad.json");
+}
+
+#[test]
+fn clipping_gradient_opacity_minip_and_jitter_render() {
+    let dir = TempDir::new("s8");
+    let file = ball_file(&dir, VolLayout::Linear);
+    let png = |name: &str, args: &[&str]| {
+        let out = dir.path(name);
+        run_ok(
+            vol_app_on("render", &file)
+                .args(["--size", "48x48", "--tf-preset", "skull", "--out"])
+                .arg(&out)
+                .args(args),
+        );
+        image::open(&out).unwrap().to_rgb8()
+    };
+    let plain = png("plain.png", &[]);
+    // A box that holds nothing of the volume: background only.
+    let empty = png("empty.png", &["--clip-box", "-100,-100,-100,-50,-50,-50"]);
+    assert!(empty.pixels().all(|p| p.0 == [0, 0, 0]));
+    let plane = png("plane.png", &["--clip-plane", "-1,0,0,-1e6"]);
+    assert!(plane.pixels().all(|p| p.0 == [0, 0, 0]));
+    let keep_all = png("all.png", &["--clip-plane", "1,0,0,1e6", "--jitter", "off"]);
+    assert_eq!(keep_all, plain);
+    let jitter = png(
+        "jitter.png",
+        &["--jitter", "on", "--seed", "3", "--step", "2"],
+    );
+    let again = png(
+        "jitter2.png",
+        &["--jitter", "on", "--seed", "3", "--step", "2"],
+    );
+    assert_eq!(jitter, again);
+    png("go.png", &["--gradient-opacity", "0,20"]);
+    png("minip.png", &["--mode", "minip"]);
 }
 
 #[test]

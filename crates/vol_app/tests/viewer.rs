@@ -1196,3 +1196,45 @@ fn a_corrupt_frame_is_an_error_line_not_a_panic() {
     show_frame(&mut h, 2);
     assert!(app(&h).timeline().unwrap().error().is_none());
 }
+
+/// The crop box, clip planes, gradient opacity and jitter of the settings
+/// reach the renderer and change the image.
+#[test]
+fn crop_box_planes_gradient_opacity_and_jitter_reach_the_renderer() {
+    let dir = TempDir::new("clip");
+    let (mut h, _) = open_file(&dir);
+    let opts = |h: &H| app(h).last_request().unwrap().options.clone();
+    assert!(opts(&h).clip.is_empty() && opts(&h).gradient_opacity.is_none());
+    assert!(opts(&h).jitter, "frames are jittered by default");
+    let first = app(&h).last_frame().unwrap().frame.rgb.clone();
+
+    // The crop box (what its six sliders edit): the left 40% of the volume.
+    app_mut(&mut h).settings_mut().clip.crop[3] = 0.4;
+    h.step();
+    settle(&mut h);
+    let (lo, hi) = opts(&h).clip.clip_box.expect("a crop box");
+    assert!(lo.x <= 0.0 && (hi.x - 0.4 * 39.0).abs() < 1e-3, "{lo} {hi}");
+    assert!(frame_is_current(app(&h)));
+    let cropped = app(&h).last_frame().unwrap().frame.rgb.clone();
+    assert_ne!(cropped, first, "the crop box changed nothing");
+
+    // A plane (what "Add clip plane" adds; the section may be scrolled
+    // out of the test's window).
+    let plane = vol_app::viewer::state::PlaneSetting {
+        offset: 0.3,
+        ..Default::default()
+    };
+    app_mut(&mut h).settings_mut().clip.planes.push(plane);
+    h.step();
+    settle(&mut h);
+    assert_eq!(opts(&h).clip.planes.len(), 1);
+    h.get_by_label("Gradient opacity (DVR)").click();
+    h.step();
+    settle(&mut h);
+    assert!(opts(&h).gradient_opacity.is_some());
+    app_mut(&mut h).settings_mut().clip.jitter = false;
+    h.step();
+    settle(&mut h);
+    assert!(!opts(&h).jitter);
+    assert!(h.query_all_by_label("MinIP").count() > 0);
+}

@@ -44,14 +44,15 @@ pub struct SkipRuns<'a> {
 }
 
 impl<'a> SkipRuns<'a> {
-    /// The runs of samples `k0..k1` of `seg` (clamped to the ray) by `skip`,
+    /// The runs of samples `k0..k1` of `seg` (clamped to the ray's kept
+    /// samples `first..count`) by `skip`,
     /// or, with `None`, one run of [`RunKind::Unknown`].
     #[inline(always)]
     pub fn new(skip: Option<&'a SkipGrid>, seg: &'a RaySegment, k0: u32, k1: u32) -> Self {
         SkipRuns {
             skip,
             seg,
-            k: k0,
+            k: k0.max(seg.first),
             k1: k1.min(seg.count),
         }
     }

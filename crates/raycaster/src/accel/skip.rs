@@ -8,6 +8,7 @@ use glam::Vec3A;
 use glam::{UVec3, Vec3};
 
 use super::{IsoCells, MacrocellGrid};
+use crate::clip::ClipRegion;
 use crate::geometry::Aabb;
 use crate::volume::AnyVolume;
 #[cfg(any(test, not(target_arch = "x86_64")))]
@@ -52,6 +53,17 @@ impl SkipGrid {
     /// Marks the cells for which `occupied(min, max)` holds and computes the
     /// distance field of the rest.
     pub fn build(cells: &MacrocellGrid, occupied: impl Fn(f32, f32) -> bool) -> Self {
+        Self::build_clipped(cells, occupied, None)
+    }
+
+    /// [`SkipGrid::build`] where, besides, every cell that holds no point
+    /// `clip` keeps is empty: clipped space is skipped like transparent
+    /// space (and the object renderer culls bricks made only of it).
+    pub fn build_clipped(
+        cells: &MacrocellGrid,
+        occupied: impl Fn(f32, f32) -> bool,
+        clip: Option<&ClipRegion>,
+    ) -> Self {
         // Neighbouring cells often share a range (all-empty space above
         // all), so remember the last answer.
         let mut last = (f32::NAN, f32::NAN, false);
@@ -66,6 +78,20 @@ impl SkipGrid {
             })
             .collect();
         let n = cells.count;
+        let mut occupied = occupied;
+        if let Some(clip) = clip {
+            let side = cells.cell as f32;
+            let (ny, nz) = (n.y as usize, n.z as usize);
+            for (i, occ) in occupied.iter_mut().enumerate().filter(|(_, o)| **o) {
+                let c = UVec3::new(
+                    (i / (ny * nz)) as u32,
+                    ((i / nz) % ny) as u32,
+                    (i % nz) as u32,
+                );
+                let lo = c.as_vec3() * side;
+                *occ = clip.may_hold(lo, lo + Vec3::splat(side));
+            }
+        }
         let coarse_count = (n + UVec3::ONE) / 2;
         let (cy, cz) = (coarse_count.y as usize, coarse_count.z as usize);
         let mut distance = vec![u8::MAX; coarse_count.x as usize * cy * cz];
@@ -92,7 +118,18 @@ impl SkipGrid {
     /// value range holds it, and in those the interpolation cells whose
     /// corners straddle it ([`IsoCells`]).
     pub fn for_iso(volume: &AnyVolume, cells: &MacrocellGrid, iso: f32) -> Self {
-        let mut grid = Self::build(cells, |lo, hi| lo <= iso && iso <= hi);
+        Self::for_iso_clipped(volume, cells, iso, None)
+    }
+
+    /// [`SkipGrid::for_iso`] with the cells outside `clip` empty (see
+    /// [`SkipGrid::build_clipped`]).
+    pub fn for_iso_clipped(
+        volume: &AnyVolume,
+        cells: &MacrocellGrid,
+        iso: f32,
+        clip: Option<&ClipRegion>,
+    ) -> Self {
+        let mut grid = Self::build_clipped(cells, |lo, hi| lo <= iso && iso <= hi, clip);
         grid.iso_cells = Some(IsoCells::build(volume, cells, &grid, iso));
         grid
     }

@@ -16,10 +16,11 @@ pub struct AvgState {
 }
 
 impl Integrator for AvgState {
-    /// Adds the span's samples. Every sample counts, so nothing is skipped.
+    /// Adds the span's samples. Every kept sample counts, so nothing is
+    /// skipped (clipped samples are outside `first..count`).
     #[inline]
     fn integrate<V: Volume>(&mut self, span: Span<'_, V>) -> u64 {
-        let (k0, k1) = (span.start, span.end.min(span.seg.count));
+        let (k0, k1) = (span.start.max(span.seg.first), span.end.min(span.seg.count));
         let sum = fold_values(span.ctx.volume, span.seg, k0, k1, 0.0f32, |s, v| s + v);
         let n = k1.saturating_sub(k0) as u64;
         self.sum += sum as f64;

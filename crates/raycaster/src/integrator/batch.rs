@@ -88,7 +88,7 @@ impl SampleBatch {
         // lane-wise.
         let mut t = [0.0f32; LANES];
         for (l, t) in t.iter_mut().enumerate() {
-            *t = seg.t_in + (k + l as u32) as f32 * seg.step;
+            *t = seg.t0 + (k + l as u32) as f32 * seg.step;
         }
         for a in 0..3 {
             for l in 0..LANES {

@@ -1,9 +1,10 @@
-//! Direct volume rendering: front-to-back compositing with ERT and ESS.
+//! Direct volume rendering: front-to-back compositing with ERT and ESS, and
+//! optionally gradient-magnitude opacity ([`GradientOpacity`]).
 
 use glam::{UVec3, Vec3, Vec4};
 
 use super::batch::SampleBatch;
-use super::{FrameContext, Integrator, Occupancy, RaySegment, Span};
+use super::{FrameContext, GradientOpacity, Integrator, Occupancy, RaySegment, Span};
 use crate::accel::RunKind;
 use crate::simd::{self, Isa, Kernel, LANES};
 use crate::volume::{CornerGradients, Volume, corner_gradients, interpolate_gradient};
@@ -37,7 +38,10 @@ impl Integrator for DvrState {
         for run in span.runs() {
             let march = match run.kind {
                 RunKind::Empty => false,
-                RunKind::Cell(i) => !ctx.macrocells.uniform[i],
+                // A uniform cell's value is constant, its gradient is not
+                // (central differences reach into the neighbours): with
+                // gradient opacity it is marched.
+                RunKind::Cell(i) => !ctx.macrocells.uniform[i] || ctx.gradient_opacity.is_some(),
                 RunKind::Unknown => true,
             };
             if march && run.start == pending.1 {
@@ -87,14 +91,28 @@ impl DvrState {
         if k >= end {
             return 0;
         }
-        simd::dispatch(March {
-            state: self,
-            ctx,
-            seg,
-            k,
-            end,
-            threshold,
-        })
+        // Gradient opacity is a separate monomorphised loop, so the default
+        // loop carries no test for it.
+        match ctx.gradient_opacity {
+            None => simd::dispatch(March::<V, false> {
+                state: self,
+                ctx,
+                seg,
+                k,
+                end,
+                threshold,
+                go: GradientOpacity::default(),
+            }),
+            Some(go) => simd::dispatch(March::<V, true> {
+                state: self,
+                ctx,
+                seg,
+                k,
+                end,
+                threshold,
+                go,
+            }),
+        }
     }
 
     /// Composites `n` samples of the constant value `v` in closed form: with
@@ -137,17 +155,19 @@ impl DvrState {
     }
 }
 
-/// [`DvrState::march`]'s loop as a [`Kernel`].
-struct March<'a, 'c, V: Volume> {
+/// [`DvrState::march`]'s loop as a [`Kernel`]; `GO`: with gradient opacity
+/// `go`.
+struct March<'a, 'c, V: Volume, const GO: bool> {
     state: &'a mut DvrState,
     ctx: &'a FrameContext<'c, V>,
     seg: &'a RaySegment,
     k: u32,
     end: u32,
     threshold: f32,
+    go: GradientOpacity,
 }
 
-impl<V: Volume> Kernel for March<'_, '_, V> {
+impl<V: Volume, const GO: bool> Kernel for March<'_, '_, V, GO> {
     type Output = u64;
 
     /// The marching loop: values and table positions a batch at a time,
@@ -163,6 +183,7 @@ impl<V: Volume> Kernel for March<'_, '_, V> {
             k,
             end,
             threshold,
+            go,
         } = self;
         let volume = ctx.volume;
         let lut = ctx.lut;
@@ -185,12 +206,14 @@ impl<V: Volume> Kernel for March<'_, '_, V> {
             while lanes != 0 {
                 let l = lanes.trailing_zeros() as usize;
                 lanes &= lanes - 1;
-                let e = lut.lookup_at(x[l], batch.value[l]);
+                let mut e = lut.lookup_at(x[l], batch.value[l]);
                 if e.w <= 0.0 {
                     continue;
                 }
-                let mut rgb = e.truncate();
-                if let Some(ph) = &shading {
+                // The gradient, only for samples the TF makes visible and
+                // only when shading or gradient opacity needs it; `None`
+                // when it is exactly zero.
+                let g = if GO || shading.is_some() {
                     let cell = batch.cell(l);
                     if grads_cell != cell {
                         grads_cell = cell;
@@ -202,18 +225,31 @@ impl<V: Volume> Kernel for March<'_, '_, V> {
                             (g, g.iter().all(|d| *d == Vec4::ZERO))
                         });
                     }
-                    let g = match &grads {
+                    match &grads {
                         Some((_, true)) => None,
                         Some((g, false)) => {
                             Some(interpolate_gradient(g, batch.frac(l), inv_two_spacing))
                         }
                         None => Some(volume.gradient(seg.pos(b + l as u32))),
-                    };
-                    if let Some(g) = g
-                        && let Some((diffuse, spec)) = ph.terms(g, seg.world_dir)
-                    {
-                        rgb = rgb * diffuse + Vec3::splat(e.w * spec);
                     }
+                } else {
+                    None
+                };
+                if GO {
+                    let w = go.weight(g.map_or(0.0, |g| g.length()));
+                    if w <= 0.0 {
+                        continue;
+                    }
+                    if w < 1.0 {
+                        e = go.scale(e, w, lut.step());
+                    }
+                }
+                let mut rgb = e.truncate();
+                if let Some(ph) = &shading
+                    && let Some(g) = g
+                    && let Some((diffuse, spec)) = ph.terms(g, seg.world_dir)
+                {
+                    rgb = rgb * diffuse + Vec3::splat(e.w * spec);
                 }
                 let w = 1.0 - alpha;
                 color += w * rgb;

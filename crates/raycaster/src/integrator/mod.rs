@@ -16,6 +16,7 @@ mod avg;
 mod batch;
 mod dvr;
 mod iso;
+mod minip;
 mod mip;
 mod none;
 mod segment;
@@ -24,14 +25,16 @@ mod shading;
 pub use avg::AvgState;
 pub use dvr::DvrState;
 pub use iso::{CellCubic, IsoHit, IsoNormals, IsoState};
+pub use minip::MinipState;
 pub use mip::MipState;
 pub use none::NoSamples;
-pub use segment::RaySegment;
+pub use segment::{RaySegment, jitter};
 pub use shading::Phong;
 
 use glam::{Vec3, Vec4};
 
 use crate::accel::{MacrocellGrid, SkipGrid, SkipRuns};
+use crate::clip::ClipRegion;
 use crate::scene::Scene;
 use crate::transfer::{TfLut, TransferFunction};
 use crate::volume::Volume;
@@ -51,6 +54,9 @@ pub enum RenderMode {
     /// Maximum intensity projection.
     #[cfg_attr(feature = "clap", value(help = "Maximum intensity projection"))]
     Mip,
+    /// Minimum intensity projection.
+    #[cfg_attr(feature = "clap", value(help = "Minimum intensity projection"))]
+    Minip,
     /// Mean value along the ray ("x-ray").
     #[cfg_attr(feature = "clap", value(help = "Mean value along each ray (x-ray)"))]
     Avg,
@@ -72,6 +78,7 @@ impl RenderMode {
         match self {
             RenderMode::Dvr => "dvr",
             RenderMode::Mip => "mip",
+            RenderMode::Minip => "minip",
             RenderMode::Avg => "avg",
             RenderMode::Iso => "iso",
             RenderMode::Metaballs => "metaballs",
@@ -84,6 +91,7 @@ impl RenderMode {
         match self {
             RenderMode::Dvr => visitor.visit::<DvrState>(),
             RenderMode::Mip => visitor.visit::<MipState>(),
+            RenderMode::Minip => visitor.visit::<MinipState>(),
             RenderMode::Avg => visitor.visit::<AvgState>(),
             RenderMode::Iso => visitor.visit::<IsoState>(),
             RenderMode::Metaballs => visitor.visit::<NoSamples>(),
@@ -119,13 +127,22 @@ pub enum Occupancy {
 
 impl Occupancy {
     /// The skip grid of this occupancy over the macrocells of `scene`, for
-    /// the frame's TF table and iso value.
-    pub fn skip_grid(self, scene: &Scene, lut: &TfLut, iso: f32) -> SkipGrid {
+    /// the frame's TF table and iso value; cells holding nothing `clip`
+    /// keeps are empty whatever the occupancy.
+    pub fn skip_grid(
+        self,
+        scene: &Scene,
+        lut: &TfLut,
+        iso: f32,
+        clip: Option<&ClipRegion>,
+    ) -> SkipGrid {
         let cells = scene.macrocells();
         match self {
-            Occupancy::Visible => SkipGrid::build(cells, |lo, hi| lut.any_visible(lo, hi)),
-            Occupancy::IsoValue => SkipGrid::for_iso(scene.volume(), cells, iso),
-            Occupancy::Every => SkipGrid::all_occupied(cells),
+            Occupancy::Visible => {
+                SkipGrid::build_clipped(cells, |lo, hi| lut.any_visible(lo, hi), clip)
+            }
+            Occupancy::IsoValue => SkipGrid::for_iso_clipped(scene.volume(), cells, iso, clip),
+            Occupancy::Every => SkipGrid::build_clipped(cells, |_, _| true, clip),
         }
     }
 }
@@ -140,8 +157,8 @@ pub struct Span<'a, V: Volume> {
     pub seg: &'a RaySegment,
     /// First sample index.
     pub start: u32,
-    /// One past the last sample index (clamped to the ray by the
-    /// integrators).
+    /// One past the last sample index (integrators clamp `start..end` to
+    /// the ray's kept samples `seg.first..seg.count`).
     pub end: u32,
 }
 
@@ -157,10 +174,10 @@ impl<'a, V: Volume> Span<'a, V> {
         }
     }
 
-    /// The whole ray.
+    /// The whole ray: its kept samples `first..count`.
     #[inline(always)]
     pub fn whole(ctx: &'a FrameContext<'a, V>, seg: &'a RaySegment) -> Self {
-        Self::new(ctx, seg, 0, seg.count)
+        Self::new(ctx, seg, seg.first, seg.count)
     }
 
     /// The span's samples in runs, empty or occupied by the frame's skip
@@ -237,4 +254,38 @@ pub struct FrameContext<'a, V: Volume> {
     pub iso_normals: IsoNormals,
     /// Divisor of [`RenderMode::Avg`].
     pub avg_norm: f32,
+    /// Gradient opacity of [`RenderMode::Dvr`] (`None` = off).
+    pub gradient_opacity: Option<GradientOpacity>,
+}
+
+/// Gradient-magnitude opacity (SPEC §8): the TF's opacity per unit length
+/// is multiplied by `w = clamp((|∇f| − g0)/(g1 − g0), 0, 1)` before step
+/// correction, `∇f` the shading gradient (world units). Since `w <= 1`, a
+/// value the TF leaves transparent stays transparent, so the skip grid of
+/// the TF alone remains correct.
+#[derive(Debug, Clone, Copy, PartialEq, Default)]
+pub struct GradientOpacity {
+    /// Gradient magnitude at and below which the opacity is 0.
+    pub g0: f32,
+    /// Gradient magnitude at and above which the opacity is the TF's.
+    pub g1: f32,
+}
+
+impl GradientOpacity {
+    /// The weight `w` of gradient magnitude `g`.
+    #[inline(always)]
+    pub fn weight(&self, g: f32) -> f32 {
+        ((g - self.g0) / (self.g1 - self.g0)).clamp(0.0, 1.0)
+    }
+
+    /// A table entry `e` (premultiplied, step-corrected for `step`) with
+    /// its opacity per unit length `a` scaled to `w·a`: `a` is recovered
+    /// from `α = 1 − (1 − a)^step`, corrected again, and the colour
+    /// rescaled with the opacity.
+    #[inline]
+    pub fn scale(&self, e: Vec4, w: f32, step: f32) -> Vec4 {
+        let a = 1.0 - (1.0 - e.w).max(0.0).powf(1.0 / step);
+        let alpha = 1.0 - (1.0 - w * a).powf(step);
+        e * (alpha / e.w)
+    }
 }

@@ -14,7 +14,7 @@ use super::plan::{FramePlan, PlanCache, RenderOptions};
 use super::{Cancel, Frame, FrameStats, Renderer};
 use crate::camera::{Camera, PixelRect};
 use crate::error::Result;
-use crate::integrator::{FrameContext, Integrator, IntegratorVisitor, RaySegment, Span};
+use crate::integrator::{FrameContext, Integrator, IntegratorVisitor, RaySegment, Span, jitter};
 use crate::scene::Scene;
 use crate::transfer::TransferFunction;
 use crate::volume::{Volume, VolumeVisitor};
@@ -37,13 +37,16 @@ pub struct FrameJob<'a, V: Volume> {
 
 impl<V: Volume> FrameJob<'_, V> {
     /// The ray of pixel `(i, j)` clipped to the volume, `None` when it
-    /// misses.
+    /// misses: jittered and clipped as the frame says, the one place every
+    /// schedule gets its rays from.
     #[inline]
     pub fn segment(&self, i: u32, j: u32) -> Option<RaySegment> {
-        RaySegment::new(
+        RaySegment::with(
             self.ctx.volume.grid(),
             &self.plan.camera.ray(i, j),
             self.plan.step,
+            self.plan.jitter.map_or(0.0, |seed| jitter(i, j, seed)),
+            self.plan.clip.as_ref(),
         )
     }
 }

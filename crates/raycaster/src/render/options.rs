@@ -2,7 +2,8 @@
 
 use glam::Vec3;
 
-use crate::integrator::{IsoNormals, Phong, RenderMode};
+use crate::clip::Clip;
+use crate::integrator::{GradientOpacity, IsoNormals, Phong, RenderMode};
 use crate::volume::Grid;
 
 /// What to render and how.
@@ -33,6 +34,16 @@ pub struct RenderOptions {
     pub iso_normals: IsoNormals,
     /// Background colour, 0..1.
     pub background: Vec3,
+    /// Crop box and clip planes (world coordinates); empty = none.
+    pub clip: Clip,
+    /// Gradient-magnitude opacity in [`RenderMode::Dvr`] (`None` = off).
+    pub gradient_opacity: Option<GradientOpacity>,
+    /// Jittered sample positions `t_in + (k + j)·s`, `j` a hash of the
+    /// pixel and [`RenderOptions::seed`] (not in [`RenderMode::Iso`], which
+    /// finds crossings exactly rather than sampling).
+    pub jitter: bool,
+    /// Seed of the jitter hash.
+    pub seed: u32,
 }
 
 impl Default for RenderOptions {
@@ -50,6 +61,10 @@ impl Default for RenderOptions {
             shadows: false,
             iso_normals: IsoNormals::Gradient,
             background: Vec3::ZERO,
+            clip: Clip::default(),
+            gradient_opacity: None,
+            jitter: false,
+            seed: 0,
         }
     }
 }

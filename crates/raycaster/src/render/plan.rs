@@ -8,6 +8,7 @@ use std::sync::Arc;
 
 use crate::accel::SkipGrid;
 use crate::camera::{Camera, CameraFrame, PixelRect};
+use crate::clip::ClipRegion;
 use crate::error::{Error, Result};
 use crate::geometry::Aabb;
 use crate::integrator::{FrameContext, Integrator, IntegratorVisitor, Occupancy, Phong};
@@ -26,6 +27,8 @@ struct PlanKey {
     occupancy: Occupancy,
     /// The iso value's bits where the occupancy depends on it, else 0.
     iso: u32,
+    /// The clip region the skip grid leaves out.
+    clip: Option<ClipRegion>,
 }
 
 /// How many (TF, step, mode) combinations a [`PlanCache`] keeps: enough for
@@ -48,6 +51,7 @@ impl PlanCache {
         tf: &TransferFunction,
         step: f32,
         options: &RenderOptions,
+        clip: Option<&ClipRegion>,
     ) -> Arc<(TfLut, SkipGrid)> {
         struct OccupancyOf;
         impl IntegratorVisitor for OccupancyOf {
@@ -66,6 +70,7 @@ impl PlanCache {
                 Occupancy::IsoValue => options.iso_value.to_bits(),
                 Occupancy::Visible | Occupancy::Every => 0,
             },
+            clip: clip.cloned(),
         };
         if let Some(i) = self.entries.iter().position(|(k, _)| *k == key) {
             let hit = self.entries.remove(i);
@@ -77,7 +82,7 @@ impl PlanCache {
         self.entries.retain(|(k, _)| k.scene == key.scene);
         self.entries.truncate(PLAN_CACHE_ENTRIES - 1);
         let lut = TfLut::new(tf, step);
-        let skip = occupancy.skip_grid(scene, &lut, options.iso_value);
+        let skip = occupancy.skip_grid(scene, &lut, options.iso_value, clip);
         let v = Arc::new((lut, skip));
         self.entries.insert(0, (key, v.clone()));
         v
@@ -172,6 +177,10 @@ pub struct FramePlan {
     pub height: u32,
     /// The options' lights as unit vectors.
     pub lights: Vec<glam::Vec3>,
+    /// The options' clip region in voxel space (`None`: nothing clipped).
+    pub clip: Option<ClipRegion>,
+    /// The jitter seed when samples are jittered.
+    pub jitter: Option<u32>,
 }
 
 impl FramePlan {
@@ -226,8 +235,21 @@ impl FramePlan {
             }
             lights.push(unit);
         }
-        let prepared = cache.get(scene, tf, step, options);
+        options.clip.validate()?;
+        if let Some(go) = options.gradient_opacity
+            && !(go.g0.is_finite() && go.g1.is_finite() && go.g0 < go.g1)
+        {
+            return Err(Error::option(
+                "gradient-opacity",
+                format!("g0 = {} must be below g1 = {} (both finite)", go.g0, go.g1),
+            ));
+        }
+        let clip = options.clip.region(grid);
+        let prepared = cache.get(scene, tf, step, options, clip.as_ref());
         Ok(FramePlan {
+            clip,
+            jitter: (options.jitter && options.mode != crate::integrator::RenderMode::Iso)
+                .then_some(options.seed),
             lights,
             rect: frame.screen_rect(&grid.bounds()),
             camera: frame,
@@ -267,6 +289,7 @@ impl FramePlan {
             shadows: options.shadows,
             iso_normals: options.iso_normals,
             avg_norm: <V::Sample as crate::sample::Sample>::TYPE.max_value(),
+            gradient_opacity: options.gradient_opacity,
         }
     }
 }
@@ -284,22 +307,31 @@ mod tests {
         let tf = TransferFunction::preset("ramp", crate::sample::SampleType::U8).unwrap();
         let options = RenderOptions::default();
         let mut cache = PlanCache::default();
-        let fine = cache.get(&scene, &tf, 0.5, &options);
-        let coarse = cache.get(&scene, &tf, 1.0, &options);
+        let fine = cache.get(&scene, &tf, 0.5, &options, None);
+        let coarse = cache.get(&scene, &tf, 1.0, &options, None);
         assert!(!Arc::ptr_eq(&fine, &coarse));
         // Back and forth: the same tables, nothing rebuilt.
-        assert!(Arc::ptr_eq(&cache.get(&scene, &tf, 0.5, &options), &fine));
-        assert!(Arc::ptr_eq(&cache.get(&scene, &tf, 1.0, &options), &coarse));
+        assert!(Arc::ptr_eq(
+            &cache.get(&scene, &tf, 0.5, &options, None),
+            &fine
+        ));
+        assert!(Arc::ptr_eq(
+            &cache.get(&scene, &tf, 1.0, &options, None),
+            &coarse
+        ));
         assert_eq!(cache.len(), 2);
         // Many other steps: bounded, the least recently used goes first.
         for k in 0..PLAN_CACHE_ENTRIES {
-            cache.get(&scene, &tf, 2.0 + k as f32, &options);
+            cache.get(&scene, &tf, 2.0 + k as f32, &options, None);
         }
         assert_eq!(cache.len(), PLAN_CACHE_ENTRIES);
-        assert!(!Arc::ptr_eq(&cache.get(&scene, &tf, 0.5, &options), &fine));
+        assert!(!Arc::ptr_eq(
+            &cache.get(&scene, &tf, 0.5, &options, None),
+            &fine
+        ));
         // A new scene drops the old scene's tables.
         let other = Scene::new(AnyVolume::from_fn(grid, |v| (v.y * 30) as u8));
-        cache.get(&other, &tf, 0.5, &options);
+        cache.get(&other, &tf, 0.5, &options, None);
         assert_eq!(cache.len(), 1);
     }
 }

@@ -128,6 +128,9 @@ impl ViewerApp {
         let Some(planned) = self.progressive.next(changed, interacting, full) else {
             return;
         };
+        // Previews are jittered like the still frames (when jitter is on):
+        // the same view at the same level then gives the same image at
+        // every stage.
         let request = RenderRequest {
             level: planned.level,
             preview: planned.stage == Stage::Preview,
@@ -165,6 +168,9 @@ impl ViewerApp {
                 lights: s.light_directions(),
                 shadows: s.shadows,
                 iso_normals: s.iso_normals,
+                clip: s.clip.clip(&volume.scene.grid().bounds()),
+                gradient_opacity: s.clip.gradient_opacity(),
+                jitter: s.clip.jitter,
                 ..RenderOptions::default()
             },
             renderer: s.renderer,

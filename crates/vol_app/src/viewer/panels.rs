@@ -12,8 +12,8 @@ use super::app::ViewerApp;
 use super::dialogs::Purpose;
 use super::loading::{Source, VolumeInfo};
 use super::state::{
-    LightAngles, MAX_LIGHTS, MODES, ResolutionChoice, STEP_FACTOR_RANGE, Settings, max_threads,
-    mode_label,
+    ClipSettings, LightAngles, MAX_LIGHTS, MAX_VIEWER_PLANES, MODES, PlaneSetting,
+    ResolutionChoice, STEP_FACTOR_RANGE, Settings, max_threads, mode_label,
 };
 
 impl ViewerApp {
@@ -26,6 +26,7 @@ impl ViewerApp {
         section(ui, "Transfer function", |ui| self.tf_section(ui));
         section(ui, "Rendering", |ui| self.render_section(ui));
         section(ui, "Camera", |ui| self.camera_section(ui));
+        section(ui, "Clipping", |ui| self.clip_section(ui));
     }
 
     fn file_section(&mut self, ui: &mut Ui) {
@@ -122,6 +123,7 @@ impl ViewerApp {
             self.settings.tf_preset = None;
         }
         self.controls_moving |= self.tf_editor.is_dragging();
+        self.gradient_opacity_controls(ui);
         ui.horizontal(|ui| {
             let enabled = !self.dialogs.is_open();
             if ui
@@ -137,6 +139,87 @@ impl ViewerApp {
                 self.show_dialog(Purpose::SaveTf);
             }
         });
+    }
+
+    /// Gradient opacity: a checkbox and the g0/g1 sliders, up to the
+    /// volume's largest possible gradient (its value span over the smallest
+    /// spacing).
+    fn gradient_opacity_controls(&mut self, ui: &mut Ui) {
+        let gmax = self.volume.as_ref().map_or(255.0, |v| {
+            let (lo, hi) = v.info.value_range;
+            ((hi - lo) / v.scene.grid().spacing.min_element()).max(1e-3)
+        });
+        let c = &mut self.settings.clip;
+        ui.checkbox(&mut c.gradient_opacity, "Gradient opacity (DVR)")
+            .on_hover_text(
+                "Opacity × clamp((|∇f| − g0)/(g1 − g0), 0, 1): shows boundaries, hides \
+                 homogeneous regions (|∇f| in data units per world unit)",
+            );
+        if c.gradient_opacity {
+            let a = ui.add(egui::Slider::new(&mut c.g0, 0.0..=gmax).text("g0: hidden below"));
+            let b = ui.add(egui::Slider::new(&mut c.g1, 0.0..=gmax).text("g1: full from"));
+            if c.g1 <= c.g0 {
+                // Keep g0 < g1: the slider not being dragged gives way.
+                if b.dragged() {
+                    c.g0 = (c.g1 - 1e-3 * gmax).max(0.0);
+                }
+                c.g1 = c.g1.max(c.g0 + 1e-3 * gmax);
+            }
+            self.controls_moving |= a.dragged() || b.dragged();
+        }
+    }
+
+    /// Jitter, the crop box (six sliders, fractions of the volume's box)
+    /// and up to three clip planes (normal angles and offset).
+    fn clip_section(&mut self, ui: &mut Ui) {
+        let c = &mut self.settings.clip;
+        ui.checkbox(&mut c.jitter, "Jitter")
+            .on_hover_text("Trades wood-grain banding at coarse steps for fine noise");
+        ui.label("Crop box (fraction of the volume):");
+        let mut moving = false;
+        for (a, name) in ["x", "y", "z"].into_iter().enumerate() {
+            let (lo, hi) = c.crop.split_at_mut(3);
+            let r0 = ui.add(egui::Slider::new(&mut lo[a], 0.0..=1.0).text(format!("{name} min")));
+            let r1 = ui.add(egui::Slider::new(&mut hi[a], 0.0..=1.0).text(format!("{name} max")));
+            if lo[a] > hi[a] {
+                if r0.dragged() {
+                    hi[a] = lo[a];
+                } else {
+                    lo[a] = hi[a];
+                }
+            }
+            moving |= r0.dragged() || r1.dragged();
+        }
+        if ui.button("Reset crop box").clicked() {
+            c.crop = ClipSettings::default().crop;
+        }
+        let mut remove = None;
+        for (n, p) in c.planes.iter_mut().enumerate() {
+            ui.horizontal(|ui| {
+                ui.label(format!("Plane {}", n + 1));
+                if ui.small_button("Remove").clicked() {
+                    remove = Some(n);
+                }
+            });
+            let az =
+                egui::Slider::new(&mut p.normal.azimuth, -180.0..=180.0).text("Normal azimuth °");
+            let el =
+                egui::Slider::new(&mut p.normal.elevation, -90.0..=90.0).text("Normal elevation °");
+            let off = egui::Slider::new(&mut p.offset, -1.0..=1.0).text("Offset");
+            for r in [ui.add(az), ui.add(el), ui.add(off)] {
+                moving |= r.dragged();
+            }
+        }
+        if let Some(n) = remove {
+            c.planes.remove(n);
+        }
+        if c.planes.len() < MAX_VIEWER_PLANES && ui.button("Add clip plane").clicked() {
+            c.planes.push(PlaneSetting {
+                normal: LightAngles::default(),
+                offset: 0.3,
+            });
+        }
+        self.controls_moving |= moving;
     }
 
     fn render_section(&mut self, ui: &mut Ui) {

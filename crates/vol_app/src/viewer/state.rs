@@ -26,9 +26,10 @@ pub const STEP_FACTOR_RANGE: std::ops::RangeInclusive<f32> = 0.05..=4.0;
 /// The rendering modes, in menu order. Metaballs are not offered: they are
 /// rendered from balls by `vol_app render --mode metaballs`, not by the
 /// viewer's volume renderer (issue 14, item 2).
-pub const MODES: [RenderMode; 4] = [
+pub const MODES: [RenderMode; 5] = [
     RenderMode::Dvr,
     RenderMode::Mip,
+    RenderMode::Minip,
     RenderMode::Avg,
     RenderMode::Iso,
 ];
@@ -38,6 +39,7 @@ pub fn mode_label(mode: RenderMode) -> &'static str {
     match mode {
         RenderMode::Dvr => "DVR",
         RenderMode::Mip => "MIP",
+        RenderMode::Minip => "MinIP",
         RenderMode::Avg => "X-ray",
         RenderMode::Iso => "Iso",
         RenderMode::Metaballs => "Metaballs",
@@ -100,6 +102,116 @@ impl LightAngles {
     }
 }
 
+/// The most clip planes the panel offers.
+pub const MAX_VIEWER_PLANES: usize = 3;
+
+/// A clip plane of the viewer: samples on the side its normal points to are
+/// removed. The normal is given by two angles (as a light's direction), the
+/// offset as a fraction of half the volume's diagonal from its centre
+/// (0: through the centre, ±1: off the volume).
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize, Default)]
+#[serde(default)]
+pub struct PlaneSetting {
+    /// Direction of the normal.
+    pub normal: LightAngles,
+    /// Offset along the normal, −1..1.
+    pub offset: f32,
+}
+
+/// Clipping and per-sample options of the viewer (SPEC §8).
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(default)]
+pub struct ClipSettings {
+    /// Crop box in coordinates normalised to the volume's box: `min` x, y,
+    /// z then `max` x, y, z, each 0..1.
+    pub crop: [f32; 6],
+    /// Clip planes.
+    pub planes: Vec<PlaneSetting>,
+    /// Gradient opacity on.
+    pub gradient_opacity: bool,
+    /// Gradient magnitude (data units per world unit) at and below which
+    /// gradient opacity hides a sample.
+    pub g0: f32,
+    /// Gradient magnitude from which a sample keeps the TF's opacity.
+    pub g1: f32,
+    /// Jittered samples (in every frame: a view renders the same image at
+    /// every stage of the progressive refinement).
+    pub jitter: bool,
+}
+
+impl Default for ClipSettings {
+    fn default() -> Self {
+        ClipSettings {
+            crop: [0.0, 0.0, 0.0, 1.0, 1.0, 1.0],
+            planes: Vec::new(),
+            gradient_opacity: false,
+            g0: 0.0,
+            g1: 10.0,
+            jitter: true,
+        }
+    }
+}
+
+impl ClipSettings {
+    /// The library's clip for a volume with world box `bounds`.
+    pub fn clip(&self, bounds: &raycaster::geometry::Aabb) -> raycaster::clip::Clip {
+        let size = bounds.max - bounds.min;
+        let at = |u: [f32; 3]| bounds.min + Vec3::from_array(u) * size;
+        let lo = at([self.crop[0], self.crop[1], self.crop[2]]);
+        let hi = at([self.crop[3], self.crop[4], self.crop[5]]);
+        let full = self.crop == ClipSettings::default().crop;
+        let half_diagonal = 0.5 * size.length();
+        raycaster::clip::Clip {
+            clip_box: (!full).then_some((lo.min(hi), lo.max(hi))),
+            planes: self
+                .planes
+                .iter()
+                .map(|p| {
+                    let n = p.normal.direction();
+                    raycaster::clip::ClipPlane {
+                        normal: n,
+                        offset: n.dot(bounds.center()) + p.offset * half_diagonal,
+                    }
+                })
+                .collect(),
+        }
+    }
+
+    /// The library's gradient opacity (off, or with g0 < g1).
+    pub fn gradient_opacity(&self) -> Option<raycaster::integrator::GradientOpacity> {
+        (self.gradient_opacity && self.g0 < self.g1).then_some(
+            raycaster::integrator::GradientOpacity {
+                g0: self.g0,
+                g1: self.g1,
+            },
+        )
+    }
+
+    fn repaired(mut self) -> Self {
+        for (i, c) in self.crop.iter_mut().enumerate() {
+            *c = if c.is_finite() {
+                c.clamp(0.0, 1.0)
+            } else {
+                (i >= 3) as u8 as f32
+            };
+        }
+        self.planes.truncate(MAX_VIEWER_PLANES);
+        for p in &mut self.planes {
+            p.normal = p.normal.repaired();
+            p.offset = if p.offset.is_finite() {
+                p.offset.clamp(-1.0, 1.0)
+            } else {
+                0.0
+            };
+        }
+        if !(self.g0.is_finite() && self.g1.is_finite() && self.g0 >= 0.0 && self.g0 < self.g1) {
+            let d = ClipSettings::default();
+            (self.g0, self.g1) = (d.g0, d.g1);
+        }
+        self
+    }
+}
+
 /// The size of the rendered image.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize, Default)]
 #[serde(rename_all = "lowercase")]
@@ -159,6 +271,8 @@ pub struct Settings {
     pub play_loop: bool,
     /// Playback speed of a sequence, in frames per second.
     pub play_fps: f32,
+    /// Crop box, clip planes, gradient opacity, jitter.
+    pub clip: ClipSettings,
 }
 
 impl Default for Settings {
@@ -186,6 +300,7 @@ impl Default for Settings {
             load_in_ram: false,
             play_loop: true,
             play_fps: 10.0,
+            clip: ClipSettings::default(),
         }
     }
 }
@@ -261,6 +376,7 @@ impl Settings {
         } else {
             defaults.play_fps
         };
+        self.clip = self.clip.repaired();
         if self.last_dir.as_ref().is_some_and(|d| !d.is_dir()) {
             self.last_dir = None;
         }

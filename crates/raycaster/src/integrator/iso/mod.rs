@@ -87,11 +87,20 @@ impl Integrator for IsoState {
     /// the number of cells visited.
     #[inline]
     fn integrate<V: Volume>(&mut self, span: Span<'_, V>) -> u64 {
-        if self.hit.is_some() {
+        // A ray that clipping left without samples shows nothing, in every
+        // renderer (the object renderer never hands it a span).
+        if self.hit.is_some() || span.seg.is_empty() {
             return 0;
         }
         let (ctx, seg) = (span.ctx, span.seg);
-        let t0 = seg.t(span.start);
+        // The first piece starts where the ray enters the (clipped) box;
+        // frames with iso never jitter, so sample `first`'s parameter is at
+        // or after it.
+        let t0 = if span.start <= seg.first {
+            seg.t_in
+        } else {
+            seg.t(span.start)
+        };
         let t1 = if span.end >= seg.count {
             seg.t_out
         } else {

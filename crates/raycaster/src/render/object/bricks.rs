@@ -4,6 +4,7 @@
 use glam::{UVec3, Vec3, Vec3A};
 
 use crate::accel::{MacrocellGrid, SkipGrid};
+use crate::clip::ClipRegion;
 use crate::geometry::Aabb;
 use crate::integrator::RaySegment;
 use crate::volume::Grid;
@@ -22,13 +23,16 @@ pub(super) struct BrickSet {
 
 impl BrickSet {
     /// All bricks, or with `cull` only those holding an occupied cell of
-    /// `skip`, each with the box of its occupied cells.
+    /// `skip`, each with the box of its occupied cells; in every mode, no
+    /// brick that holds nothing `clip` keeps (its rays' samples there are
+    /// outside their kept range).
     pub fn build(
         grid: &Grid,
         cells: &MacrocellGrid,
         skip: &SkipGrid,
         side: u32,
         cull: bool,
+        clip: Option<&ClipRegion>,
     ) -> Self {
         let dims = grid.dims;
         // A brick larger than the volume is the volume.
@@ -45,6 +49,9 @@ impl BrickSet {
                     let b = UVec3::new(bx, by, bz);
                     let lo = (b * side).as_vec3().min(max_coord);
                     let hi = ((b + UVec3::ONE) * side).as_vec3().min(max_coord);
+                    if clip.is_some_and(|c| !c.may_hold(lo, hi)) {
+                        continue;
+                    }
                     if !cull {
                         visible.push((b, Aabb::new(lo, hi)));
                         continue;
@@ -147,8 +154,9 @@ impl Region {
     }
 }
 
-/// The indices `k0..k1` of the samples of `seg` whose computed position lies
-/// in `r` (empty when `k0 >= k1`).
+/// The indices `k0..k1` of the kept samples of `seg` (within
+/// `seg.first..seg.count`) whose computed position lies in `r` (empty when
+/// `k0 >= k1`).
 ///
 /// Every coordinate of `seg.pos(k)` is monotonic in `k`, so the samples in
 /// the region are one contiguous run. The run is estimated from the ray's
@@ -157,6 +165,13 @@ impl Region {
 /// otherwise each axis's run is found by a search on the positions.
 #[inline]
 pub(super) fn sample_range(seg: &RaySegment, r: &Region) -> (u32, u32) {
+    let (k0, k1) = brick_range(seg, r);
+    (k0.max(seg.first), k1)
+}
+
+/// [`sample_range`] among all samples `0..count`.
+#[inline]
+fn brick_range(seg: &RaySegment, r: &Region) -> (u32, u32) {
     let n = seg.count;
     let inv = Vec3A::from(seg.inv_dir);
     // The slab test on all three axes at once, for rays with no direction
@@ -180,8 +195,8 @@ pub(super) fn sample_range(seg: &RaySegment, r: &Region) -> (u32, u32) {
     // A bound on the rounding error of a sample position (voxel units),
     // converted to ray parameter: well above f32's 2⁻²⁴ relative error.
     let scale = 1.0 + seg.origin.abs().max_element() + seg.dir.abs().max_element() * t_end.abs();
-    let slack = scale * 1e-5 * inv_sum + 1e-5 * (t_end.abs() + seg.t_in.abs());
-    if enter > exit + slack || enter > t_end + slack || exit < seg.t_in - slack {
+    let slack = scale * 1e-5 * inv_sum + 1e-5 * (t_end.abs() + seg.t0.abs());
+    if enter > exit + slack || enter > t_end + slack || exit < seg.t0 - slack {
         // The line misses the region by more than rounding can bridge.
         return (0, 0);
     }
@@ -191,7 +206,7 @@ pub(super) fn sample_range(seg: &RaySegment, r: &Region) -> (u32, u32) {
         } else if t == f32::INFINITY {
             n
         } else {
-            let x = ((t - seg.t_in) * seg.inv_step).ceil();
+            let x = ((t - seg.t0) * seg.inv_step).ceil();
             // `as` saturates: negative → 0; NaN → 0.
             (x.min(n as f32) as u32).min(n)
         }

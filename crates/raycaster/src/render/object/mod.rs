@@ -14,7 +14,9 @@
 //! 2. **Visibility (ESS).** In DVR with empty-space skipping on, a brick none
 //!    of whose macrocells can show anything under the current TF is never
 //!    queued, and a visible brick is projected with the box of its occupied
-//!    macrocells only (samples outside it are invisible).
+//!    macrocells only (samples outside it are invisible). In every mode, a
+//!    brick that holds no point of the frame's clip region is never queued
+//!    (its rays' samples there lie outside their kept range).
 //! 3. **Order.** Bricks are sorted front to back. For a perspective camera
 //!    the key is the Manhattan distance, in brick coordinates, from the brick
 //!    holding the eye; along any ray from the eye every brick coordinate
@@ -114,6 +116,7 @@ use super::driver::{FrameJob, Schedule};
 use super::film::Film;
 use super::plan::RenderOptions;
 use crate::accel::SkipGrid;
+use crate::clip::ClipRegion;
 use crate::error::{Error, Result};
 use crate::integrator::Integrator;
 use crate::scene::Scene;
@@ -264,6 +267,7 @@ impl Bricks {
         scene: &Scene,
         prepared: &Arc<(TfLut, SkipGrid)>,
         options: &RenderOptions,
+        clip: Option<&ClipRegion>,
     ) -> Arc<BrickSet> {
         let side =
             self.config
@@ -273,6 +277,7 @@ impl Bricks {
             side,
             cull: options.ess && I::CULLS_EMPTY_BRICKS,
             prepared: prepared.clone(),
+            clip: clip.cloned(),
         };
         if let Some((k, set)) = &self.last
             && k.same(&key)
@@ -285,6 +290,7 @@ impl Bricks {
             &prepared.1,
             side,
             key.cull,
+            clip,
         ));
         self.last = Some((key, set.clone()));
         set
@@ -303,7 +309,12 @@ impl Schedule for Bricks {
         job: &FrameJob<'_, V>,
         film: &mut Film,
     ) -> Option<u64> {
-        let set = self.visible::<I>(job.scene, &job.plan.prepared, job.options);
+        let set = self.visible::<I>(
+            job.scene,
+            &job.plan.prepared,
+            job.options,
+            job.plan.clip.as_ref(),
+        );
         let work = FrameWork::build(
             &set,
             job.scene.grid(),
@@ -330,6 +341,8 @@ struct BrickKey {
     /// The LUT and skip grid (compared by identity; holding the `Arc`
     /// keeps its address from being reused).
     prepared: Arc<(TfLut, SkipGrid)>,
+    /// The clip region bricks were dropped for.
+    clip: Option<ClipRegion>,
 }
 
 impl BrickKey {
@@ -337,6 +350,7 @@ impl BrickKey {
         self.scene == other.scene
             && self.side == other.side
             && self.cull == other.cull
+            && self.clip == other.clip
             && (!self.cull || Arc::ptr_eq(&self.prepared, &other.prepared))
     }
 }
