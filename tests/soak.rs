@@ -86,7 +86,11 @@ fn cycle(path: &Path, rng: &mut fastrand::Rng) -> Result<usize, String> {
     } else {
         LoadMode::Ram
     };
-    let job = LoadJob::start(Source::File(path.to_path_buf(), mode, None), rng.bool(), || {});
+    let job = LoadJob::start(
+        Source::File(path.to_path_buf(), mode, None),
+        rng.bool(),
+        || {},
+    );
     let deadline = Instant::now() + Duration::from_secs(60);
     let loaded = loop {
         if let Some(result) = job.poll() {
@@ -103,7 +107,13 @@ fn cycle(path: &Path, rng: &mut fastrand::Rng) -> Result<usize, String> {
         .map_err(|e| e.to_string())?;
     let bounds = loaded.scene.grid().bounds();
     let tf = Arc::new(TransferFunction::preset("ramp", SampleType::U8).expect("ramp"));
-    let modes = [RenderMode::Dvr, RenderMode::Mip, RenderMode::Avg, RenderMode::Iso];
+    let modes = [
+        RenderMode::Dvr,
+        RenderMode::Mip,
+        RenderMode::Minip,
+        RenderMode::Avg,
+        RenderMode::Iso,
+    ];
     let mut frames = 0;
     let requests = rng.usize(1..=4);
     let mut last = 0;
@@ -195,8 +205,11 @@ fn open_render_close_returns_to_baseline() {
         now = rss_and_threads();
     }
     let (rss1, threads1) = now;
+    // Ten evenly spaced RSS samples show a trend without flooding the log.
+    let every = samples.len().div_ceil(10).max(1);
+    let samples: Vec<u64> = samples.iter().step_by(every).copied().collect();
     println!(
-        "soak: {cycles} cycles, {frames} frames in {:.0} s over {} files; RSS {} -> {} KiB (peak {}), threads {threads0} -> {threads1}; RSS every 20 cycles: {samples:?}",
+        "soak: {cycles} cycles, {frames} frames in {:.0} s over {} files; RSS {} -> {} KiB (peak {}), threads {threads0} -> {threads1}; RSS along the way: {samples:?}",
         start.elapsed().as_secs_f64(),
         files.len(),
         rss0,

@@ -233,7 +233,8 @@ impl Walk {
         let left = self.len - self.pos;
         if length != UNDEFINED && u64::from(length) > left {
             return Err(Stop::Refuse(FormatError::Invalid(format!(
-                "element ({:04X},{:04X}) at byte {} declares {length} bytes but only {left} remain",
+                "cannot read the DICOM file (element ({:04X},{:04X}) at byte {} declares \
+                 {length} bytes but only {left} remain: truncated or corrupt)",
                 tag.0, tag.1, self.pos
             ))));
         }
