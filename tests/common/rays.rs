@@ -138,7 +138,7 @@ impl<'a> RayLab<'a> {
             fn run<V: Volume>(self, ctx: &FrameContext<'_, V>, seg: &RaySegment) -> f32 {
                 let mut st = MipState::default();
                 st.integrate(Span::whole(ctx, seg));
-                st.max
+                st.value
             }
         }
         self.run(ray, ess, Mip)

@@ -16,7 +16,6 @@ mod avg;
 mod batch;
 mod dvr;
 mod iso;
-mod minip;
 mod mip;
 mod none;
 mod segment;
@@ -25,8 +24,8 @@ mod shading;
 pub use avg::AvgState;
 pub use dvr::DvrState;
 pub use iso::{CellCubic, IsoHit, IsoNormals, IsoState};
-pub use minip::MinipState;
-pub use mip::MipState;
+
+pub use mip::{Extremum, Max, Min, MinipState, MipState, ProjectionState};
 pub use none::NoSamples;
 pub use segment::{RaySegment, jitter};
 pub use shading::Phong;

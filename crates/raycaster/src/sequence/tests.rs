@@ -26,16 +26,7 @@ fn frame_bytes(k: u32) -> Vec<u8> {
 }
 
 fn values(v: &AnyVolume) -> Vec<f32> {
-    let d = v.grid().dims;
-    let mut out = Vec::new();
-    for z in 0..d.z {
-        for y in 0..d.y {
-            for x in 0..d.x {
-                out.push(v.value(UVec3::new(x, y, z)));
-            }
-        }
-    }
-    out
+    v.all_values()
 }
 
 fn expected(k: u32) -> Vec<f32> {

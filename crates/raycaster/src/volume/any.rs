@@ -210,6 +210,20 @@ impl AnyVolume {
     pub fn samples<S: Sample>(&self) -> Option<&[S]> {
         (S::TYPE == self.sample_type()).then(|| self.storage.as_slice::<S>())
     }
+    /// Every value in x-fastest order (tests compare whole volumes).
+    #[cfg(test)]
+    pub(crate) fn all_values(&self) -> Vec<f32> {
+        let d = self.grid().dims;
+        let mut out = Vec::with_capacity((d.x * d.y * d.z) as usize);
+        for z in 0..d.z {
+            for y in 0..d.y {
+                for x in 0..d.x {
+                    out.push(self.value(glam::UVec3::new(x, y, z)));
+                }
+            }
+        }
+        out
+    }
 
     /// The value of voxel `v` as a float (panics outside the grid).
     pub fn value(&self, v: UVec3) -> f32 {

@@ -330,16 +330,7 @@ fn write_all(dir: &TempDir, slices: &[Synth]) {
 }
 
 fn samples_f32(v: &AnyVolume) -> Vec<f32> {
-    let d = v.grid().dims;
-    let mut out = Vec::new();
-    for z in 0..d.z {
-        for y in 0..d.y {
-            for x in 0..d.x {
-                out.push(v.value(glam::UVec3::new(x, y, z)));
-            }
-        }
-    }
-    out
+    v.all_values()
 }
 
 /// Files written in reverse position order under increasing names, with

@@ -28,16 +28,7 @@ fn frames_of(ty: SampleType, n: u32, dims: UVec3) -> Vec<AnyVolume> {
 }
 
 fn values(v: &AnyVolume) -> Vec<f32> {
-    let d = v.grid().dims;
-    let mut out = Vec::new();
-    for z in 0..d.z {
-        for y in 0..d.y {
-            for x in 0..d.x {
-                out.push(v.value(UVec3::new(x, y, z)));
-            }
-        }
-    }
-    out
+    v.all_values()
 }
 
 fn write(path: &Path, frames: &[AnyVolume], options: &PackOptions) -> PackReport {
