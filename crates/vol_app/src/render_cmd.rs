@@ -140,6 +140,14 @@ pub fn run(args: &RenderArgs) -> Result<(), Error> {
         jitter: args.jitter.on(),
         seed: args.seed,
     };
+    if args.gradient_opacity.is_some() && args.mode != RenderMode::Dvr {
+        // It scales opacity per unit length, which only DVR composites.
+        return Err(format!(
+            "--gradient-opacity applies to --mode dvr only, not {}",
+            format!("{:?}", args.mode).to_lowercase()
+        )
+        .into());
+    }
     if args.clip_planes.len() > raycaster::clip::MAX_CLIP_PLANES {
         return Err(format!(
             "--clip-plane given {} times, at most {}",

@@ -342,6 +342,10 @@ fn bad_arguments_give_one_line_errors() {
         ),
         (vec!["--gradient-opacity", "5,5"], "--gradient-opacity"),
         (vec!["--gradient-opacity", "9,2"], "--gradient-opacity"),
+        (
+            vec!["--gradient-opacity", "1,2", "--mode", "mip"],
+            "--gradient-opacity applies to --mode dvr only, not mip",
+        ),
         (vec!["--jitter", "maybe"], "--jitter"),
     ];
     for (args, needle) in cases {

@@ -536,6 +536,91 @@ fn ert_and_ess_toggles_reach_the_renderer() {
     h.get_by_label_contains("serial ×1");
 }
 
+/// Sets the slider labelled `label` as a screen reader would.
+fn set_slider(h: &H, label: &str, value: f64) {
+    h.get_by_role_and_label(egui::accesskit::Role::Slider, label)
+        .set_value_accesskit(value);
+}
+
+#[test]
+fn the_crop_box_sliders_reach_the_renderer_and_reset() {
+    let dir = TempDir::new("crop");
+    let (mut h, _) = open_file(&dir);
+    let opts = |h: &H| app(h).last_request().unwrap().options.clone();
+    assert!(opts(&h).clip.clip_box.is_none());
+    let full = app(&h).last_frame().unwrap().frame.clone();
+    let bounds = app(&h).volume().unwrap().scene.grid().bounds();
+
+    set_slider(&h, "x max", 0.5);
+    set_slider(&h, "z min", 0.25);
+    h.step();
+    settle(&mut h);
+    assert_eq!(
+        app(&h).settings().clip.crop,
+        [0.0, 0.0, 0.25, 0.5, 1.0, 1.0]
+    );
+    let (lo, hi) = opts(&h).clip.clip_box.expect("a crop box");
+    let size = bounds.max - bounds.min;
+    let want_lo = bounds.min + glam::Vec3::new(0.0, 0.0, 0.25) * size;
+    let want_hi = bounds.min + glam::Vec3::new(0.5, 1.0, 1.0) * size;
+    assert!((lo - want_lo).length() < 1e-4, "{lo} vs {want_lo}");
+    assert!((hi - want_hi).length() < 1e-4, "{hi} vs {want_hi}");
+    assert!(frame_is_current(app(&h)));
+    let cropped = app(&h).last_frame().unwrap().frame.clone();
+    assert!(
+        cropped.stats.samples < full.stats.samples,
+        "cropping a quarter and a half away took {} samples against {}",
+        cropped.stats.samples,
+        full.stats.samples
+    );
+    assert_ne!(cropped.rgb, full.rgb);
+
+    // A min slider dragged past its max pushes the max along.
+    set_slider(&h, "x min", 0.75);
+    h.step();
+    let c = app(&h).settings().clip.crop;
+    assert!(c[0] <= c[3], "{c:?}");
+
+    h.get_by_label("Reset crop box").click_accesskit();
+    h.step();
+    settle(&mut h);
+    assert!(opts(&h).clip.clip_box.is_none());
+    assert_eq!(app(&h).last_frame().unwrap().frame.rgb, full.rgb);
+}
+
+#[test]
+fn gradient_opacity_shows_the_gradient_histogram_and_reaches_the_renderer() {
+    let dir = TempDir::new("gradient_opacity");
+    let (mut h, _) = open_file(&dir);
+    let opts = |h: &H| app(h).last_request().unwrap().options.clone();
+    assert!(opts(&h).gradient_opacity.is_none());
+    assert!(h.query_by_label("Gradient-magnitude histogram").is_none());
+    let plain = app(&h).last_frame().unwrap().frame.rgb.clone();
+    // The balls' edges: a gradient of 100 per voxel side and more.
+    let gh = &app(&h).volume().unwrap().gradient_histogram;
+    assert!(gh.hi > 10.0, "{}", gh.hi);
+    assert!(gh.counts[gh.bin_of(0.0)] > 0);
+
+    h.get_by_label("Gradient opacity (DVR)").click();
+    h.step();
+    h.get_by_label("Gradient-magnitude histogram");
+    set_slider(&h, "g0: hidden below", 1.0);
+    set_slider(&h, "g1: full from", 5.0);
+    h.step();
+    settle(&mut h);
+    let go = opts(&h).gradient_opacity.expect("gradient opacity on");
+    assert_eq!((go.g0, go.g1), (1.0, 5.0));
+    assert!(frame_is_current(app(&h)));
+    // The balls' flat insides disappear: the image changes.
+    assert_ne!(app(&h).last_frame().unwrap().frame.rgb, plain);
+
+    h.get_by_label("Gradient opacity (DVR)").click();
+    h.step();
+    settle(&mut h);
+    assert!(opts(&h).gradient_opacity.is_none());
+    assert_eq!(app(&h).last_frame().unwrap().frame.rgb, plain);
+}
+
 #[test]
 fn dragging_on_the_canvas_orbits_pans_and_renders_new_frames() {
     let dir = TempDir::new("drag");

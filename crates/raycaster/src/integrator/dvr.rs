@@ -7,7 +7,12 @@ use super::batch::SampleBatch;
 use super::{FrameContext, GradientOpacity, Integrator, Occupancy, RaySegment, Span};
 use crate::accel::RunKind;
 use crate::simd::{self, Isa, Kernel, LANES};
-use crate::volume::{CornerGradients, Volume, corner_gradients, interpolate_gradient};
+use crate::volume::{
+    CornerGradients, Volume, clamped_wings, corner_gradients, interpolate_gradient,
+};
+
+/// Corner gradients of a cell where every difference is zero.
+const ZERO_GRADIENTS: CornerGradients = [Vec4::ZERO; 8];
 
 /// Accumulated colour (premultiplied) and opacity of a ray.
 #[derive(Debug, Clone, Copy, Default)]
@@ -196,7 +201,7 @@ impl<V: Volume, const GO: bool> Kernel for March<'_, '_, V, GO> {
         let mut batch = SampleBatch::new(volume.grid());
         // A cell's corner gradients, kept while consecutive visible samples
         // stay in it, and whether they are all zero.
-        let (mut grads_cell, mut grads) = (UVec3::splat(u32::MAX), None::<(CornerGradients, bool)>);
+        let (mut grads_cell, mut grads) = (UVec3::splat(u32::MAX), (ZERO_GRADIENTS, true));
         let mut b = k;
         'march: while b < end {
             let len = ((end - b) as usize).min(LANES);
@@ -220,17 +225,16 @@ impl<V: Volume, const GO: bool> Kernel for March<'_, '_, V, GO> {
                         // Zero corner differences (inside a homogeneous
                         // region) give a zero gradient, which leaves the
                         // colour unshaded: no arithmetic per sample.
-                        grads = volume.wings(cell).map(|w| {
-                            let g = corner_gradients(&batch.corners(l), &w);
-                            (g, g.iter().all(|d| *d == Vec4::ZERO))
-                        });
+                        // Cells at the grid's faces read clamped wings.
+                        let w = volume
+                            .wings(cell)
+                            .unwrap_or_else(|| clamped_wings(volume, cell));
+                        let g = corner_gradients(&batch.corners(l), &w);
+                        grads = (g, g.iter().all(|d| *d == Vec4::ZERO));
                     }
                     match &grads {
-                        Some((_, true)) => None,
-                        Some((g, false)) => {
-                            Some(interpolate_gradient(g, batch.frac(l), inv_two_spacing))
-                        }
-                        None => Some(volume.gradient(seg.pos(b + l as u32))),
+                        (_, true) => None,
+                        (g, false) => Some(interpolate_gradient(g, batch.frac(l), inv_two_spacing)),
                     }
                 } else {
                     None

@@ -79,18 +79,18 @@ pub trait Volume: Send + Sync {
     /// x slowest and z fastest, on the threads of the current rayon pool.
     fn cell_value_ranges(&self, cell: u32, count: UVec3) -> Vec<(f32, f32)>;
 
-    /// Central-difference gradient of the interpolated field at voxel-space
-    /// position `p`, in value units per world unit. Differences are
-    /// taken one voxel apart along each axis, clamped at the grid's faces.
+    /// The gradient at voxel-space position `p`, in value units per world
+    /// unit: the trilinear interpolation of the voxels' central differences
+    /// `(v[i+1] − v[i−1]) / (2·spacing)`, the indices clamped at the grid's
+    /// faces (SPEC §8).
     #[inline(always)]
     fn gradient(&self, p: Vec3) -> Vec3 {
         let c = self.locate(p);
-        match self.wings(c.cell) {
-            Some(w) => {
-                stencil_gradient(&self.corners(c.cell), &w, c.frac, 0.5 / self.grid().spacing)
-            }
-            None => clamped_gradient(self, p),
-        }
+        let w = match self.wings(c.cell) {
+            Some(w) => w,
+            None => clamped_wings(self, c.cell),
+        };
+        stencil_gradient(&self.corners(c.cell), &w, c.frac, 0.5 / self.grid().spacing)
     }
 }
 
@@ -257,23 +257,47 @@ pub(crate) fn load_wings<S: Sample>(
     ]
 }
 
-/// The central-difference gradient of [`Volume::gradient`] for any position,
-/// each difference shortened to stay inside the grid at its faces.
-pub fn clamped_gradient<V: Volume + ?Sized>(volume: &V, p: Vec3) -> Vec3 {
-    let g = volume.grid();
-    let hi = g.max_coord();
-    let mut out = [0.0f32; 3];
-    for (axis, o) in out.iter_mut().enumerate() {
-        let mut a = p;
-        let mut b = p;
-        a[axis] = (p[axis] - 1.0).max(0.0);
-        b[axis] = (p[axis] + 1.0).min(hi[axis]);
-        let dv = b[axis] - a[axis];
-        if dv > 0.0 {
-            *o = (volume.sample(b) - volume.sample(a)) / (dv * g.spacing[axis]);
-        }
-    }
-    Vec3::from_array(out)
+/// The wings of cell `cell` (see [`Wings`]) with every coordinate clamped
+/// into the grid, for cells at its faces where [`Volume::wings`] gives
+/// `None`: a difference that would reach past a face repeats the face voxel,
+/// so the gradient there is `(v[1] − v[0]) / (2·spacing)` (SPEC §8). Reads
+/// voxel by voxel: only the cells at the faces take this path.
+pub fn clamped_wings<V: Volume + ?Sized>(volume: &V, cell: UVec3) -> Wings {
+    let last = volume.grid().dims - UVec3::ONE;
+    // Coordinate `c − 1 + i` along `axis`, clamped, for i in 0..=3.
+    let at = |axis: usize, i: u32| (cell[axis] + i).saturating_sub(1).min(last[axis]);
+    let v = |a: u32, b: u32, c: u32| {
+        volume
+            .voxel(UVec3::new(at(0, a), at(1, b), at(2, c)))
+            .to_f32()
+    };
+    // The order of `load_wings`.
+    [
+        v(0, 1, 1),
+        v(0, 1, 2),
+        v(0, 2, 1),
+        v(0, 2, 2),
+        v(3, 1, 1),
+        v(3, 1, 2),
+        v(3, 2, 1),
+        v(3, 2, 2),
+        v(1, 0, 1),
+        v(1, 0, 2),
+        v(2, 0, 1),
+        v(2, 0, 2),
+        v(1, 3, 1),
+        v(1, 3, 2),
+        v(2, 3, 1),
+        v(2, 3, 2),
+        v(1, 1, 0),
+        v(1, 2, 0),
+        v(2, 1, 0),
+        v(2, 2, 0),
+        v(1, 1, 3),
+        v(1, 2, 3),
+        v(2, 1, 3),
+        v(2, 2, 3),
+    ]
 }
 
 /// True when the gradient stencil around cell `c` is inside a grid of `dims`.

@@ -74,8 +74,50 @@ fn trilinear_reproduces_affine_fields_in_both_layouts() {
     }
 }
 
+/// SPEC §8's gradient, written out independently: per voxel the central
+/// differences `(v[i+1] − v[i−1]) / (2·spacing)` with the indices clamped to
+/// the grid, trilinearly interpolated, in f64.
+fn spec_gradient<V: Volume>(v: &V, p: Vec3) -> Vec3 {
+    let g = v.grid();
+    let last = g.dims - UVec3::ONE;
+    let at = |c: [u32; 3]| v.voxel(UVec3::from_array(c)).to_f32() as f64;
+    let voxel_gradient = |c: [u32; 3]| {
+        let mut out = [0.0f64; 3];
+        for (a, o) in out.iter_mut().enumerate() {
+            let (mut lo, mut hi) = (c, c);
+            lo[a] = c[a].saturating_sub(1);
+            hi[a] = (c[a] + 1).min(last[a]);
+            *o = (at(hi) - at(lo)) / (2.0 * g.spacing[a] as f64);
+        }
+        out
+    };
+    let mut sum = [0.0f64; 3];
+    let q = p.clamp(Vec3::ZERO, last.as_vec3());
+    let i0 = q
+        .floor()
+        .as_uvec3()
+        .min((g.dims.max(UVec3::splat(2)) - 2).min(last));
+    let f = q - i0.as_vec3();
+    for dx in 0..2u32 {
+        for dy in 0..2u32 {
+            for dz in 0..2u32 {
+                let w = [(dx, f.x), (dy, f.y), (dz, f.z)]
+                    .iter()
+                    .map(|&(d, f)| if d == 1 { f as f64 } else { 1.0 - f as f64 })
+                    .product::<f64>();
+                let c = (i0 + UVec3::new(dx, dy, dz)).min(last).to_array();
+                let vg = voxel_gradient(c);
+                for a in 0..3 {
+                    sum[a] += w * vg[a];
+                }
+            }
+        }
+    }
+    Vec3::new(sum[0] as f32, sum[1] as f32, sum[2] as f32)
+}
+
 #[test]
-fn fast_gradient_equals_clamped_gradient_and_the_analytic_one() {
+fn gradient_is_specs_central_difference_everywhere_and_exact_inside() {
     let mut rng = fastrand::Rng::with_seed(2);
     let spacing = Vec3::new(1.0, 0.5, 2.0);
     let (lin, bri) = volumes(UVec3::new(20, 18, 22), spacing, 6);
@@ -83,24 +125,43 @@ fn fast_gradient_equals_clamped_gradient_and_the_analytic_one() {
     let max = Vec3::new(19.0, 17.0, 21.0);
     for _ in 0..500 {
         let p = Vec3::new(rng.f32(), rng.f32(), rng.f32()) * max;
-        for g in [
-            lin.view().gradient(p),
-            bri.view().gradient(p),
-            clamped_gradient(&lin.view(), p),
-        ] {
-            assert!((g - exact).length() < 1e-3, "{p}: {g} vs {exact}");
+        let want = spec_gradient(&lin.view(), p);
+        for g in [lin.view().gradient(p), bri.view().gradient(p)] {
+            assert!((g - want).length() < 1e-3, "{p}: {g} vs {want}");
+        }
+        // An affine field's central differences are exact away from the
+        // faces (all eight corners of the cell inside the stencil).
+        if p.cmpge(Vec3::ONE).all() && p.cmple(max - Vec3::ONE).all() {
+            assert!((want - exact).length() < 1e-3, "{p}: {want} vs {exact}");
         }
     }
-    // A non-affine field: the interior fast path must agree with the generic one.
-    let grid = Grid::new(UVec3::new(12, 11, 13), spacing);
-    let f = |v: UVec3| ((v.x * 37 + v.y * 11 + v.z * v.z * 5) % 251) as u8;
-    let lin = linear(grid, f);
-    let bri = bricked(grid, 5, f);
-    for _ in 0..500 {
-        let p = Vec3::new(rng.f32() * 11.0, rng.f32() * 10.0, rng.f32() * 12.0);
-        let want = clamped_gradient(&lin.view(), p);
-        assert!((lin.view().gradient(p) - want).length() < 1e-3);
-        assert!((bri.view().gradient(p) - want).length() < 1e-3);
+    // At a face the difference is index-clamped, not one-sided: half the
+    // slope on the face voxel (SPEC §8).
+    let face = lin.view().gradient(Vec3::new(0.0, 5.0, 5.0));
+    assert!((face.x - exact.x / 2.0).abs() < 1e-3, "{face}");
+    // A non-affine field, faces included; flat axes (size 1) give 0.
+    for dims in [
+        UVec3::new(12, 11, 13),
+        UVec3::new(1, 7, 5),
+        UVec3::new(6, 1, 2),
+    ] {
+        let grid = Grid::new(dims, spacing);
+        let f = |v: UVec3| ((v.x * 37 + v.y * 11 + v.z * v.z * 5) % 251) as u8;
+        let lin = linear(grid, f);
+        let bri = bricked(grid, 5, f);
+        let hi = (dims - UVec3::ONE).as_vec3();
+        for _ in 0..500 {
+            let p = Vec3::new(rng.f32(), rng.f32(), rng.f32()) * hi;
+            let want = spec_gradient(&lin.view(), p);
+            assert!(
+                (lin.view().gradient(p) - want).length() < 1e-3,
+                "{dims} {p}"
+            );
+            assert!(
+                (bri.view().gradient(p) - want).length() < 1e-3,
+                "{dims} {p}"
+            );
+        }
     }
 }
 

@@ -17,7 +17,7 @@ use raycaster::prelude::*;
 
 use super::camera_control::OrbitCamera;
 use super::dialogs::{Answer, Dialogs, Purpose};
-use super::loading::{Histogram, LoadJob, Loaded, Source, VolumeInfo};
+use super::loading::{GradientHistogram, Histogram, LoadJob, Loaded, Source, VolumeInfo};
 use super::progressive::Progressive;
 use super::render_link::{RenderLink, RenderRequest, RenderedFrame};
 use super::state::Settings;
@@ -50,6 +50,8 @@ pub struct Volume {
     pub info: VolumeInfo,
     /// Value histogram.
     pub histogram: Histogram,
+    /// Gradient-magnitude histogram.
+    pub gradient_histogram: GradientHistogram,
 }
 
 /// The last finished frame, uploaded as a texture.
@@ -403,6 +405,7 @@ impl ViewerApp {
             scene,
             info,
             histogram,
+            gradient_histogram,
             timeline,
         } = loaded;
         let sample_type = info.sample_type;
@@ -457,6 +460,7 @@ impl ViewerApp {
             scene,
             info,
             histogram,
+            gradient_histogram,
         });
     }
 

@@ -234,6 +234,99 @@ fn count_in_blocks(volume: &AnyVolume, bins: Bins<'_>, progress: &mut dyn FnMut(
     });
 }
 
+/// Gradient magnitudes `|∇f|` (data units per world unit, the measure that
+/// gradient opacity thresholds) binned over `0..=hi`, drawn behind the
+/// viewer's g0/g1 controls.
+#[derive(Debug, Clone, PartialEq)]
+pub struct GradientHistogram {
+    /// End of the last bin: 1.5 × the 99.9th percentile of the magnitudes
+    /// (larger ones count in the last bin), so a few extreme edges do not
+    /// squeeze the rest into the first bins.
+    pub hi: f32,
+    /// Counts per bin.
+    pub counts: Vec<u64>,
+}
+
+/// Most gradients the histogram evaluates.
+pub const GRADIENT_SAMPLES: u64 = 1 << 18;
+
+/// Bins of the gradient histogram.
+const GRADIENT_BINS: usize = 128;
+
+impl GradientHistogram {
+    /// The histogram of `volume`'s gradients, from the library's
+    /// [`Volume::gradient`](raycaster::volume::Volume::gradient) at voxels:
+    /// a regular lattice of at most [`GRADIENT_SAMPLES`] voxels, or for a
+    /// large memory-mapped volume 4³ blocks of 16³ voxels spread over it,
+    /// so that only their pages are read (see [`count_in_blocks`]).
+    pub fn of(volume: &AnyVolume) -> Self {
+        let dims = volume.grid().dims;
+        let voxels = dims.as_dvec3().element_product();
+        let blocks =
+            volume.storage_kind() == StorageKind::Mapped && voxels > GRADIENT_SAMPLES as f64;
+        // Per axis the voxel coordinates to visit.
+        let axis = |n: u32| -> Vec<u32> {
+            if blocks {
+                let side = n.min(16);
+                let m = 4u32.min(n / side).max(1);
+                let mut v: Vec<u32> = (0..m)
+                    .flat_map(|i| {
+                        let start = if m > 1 { (n - side) * i / (m - 1) } else { 0 };
+                        start..start + side
+                    })
+                    .collect();
+                v.dedup();
+                v
+            } else {
+                let stride = ((voxels / GRADIENT_SAMPLES as f64).cbrt().ceil() as u32).max(1);
+                (0..n).step_by(stride as usize).collect()
+            }
+        };
+        let coords = [axis(dims.x), axis(dims.y), axis(dims.z)];
+        struct Magnitudes<'a>(&'a [Vec<u32>; 3]);
+        impl raycaster::volume::VolumeVisitor for Magnitudes<'_> {
+            type Output = Vec<f32>;
+            fn visit<V: raycaster::volume::Volume>(self, v: &V) -> Vec<f32> {
+                let [xs, ys, zs] = self.0;
+                let mut out = Vec::with_capacity(xs.len() * ys.len() * zs.len());
+                for &x in xs {
+                    for &y in ys {
+                        for &z in zs {
+                            let p = UVec3::new(x, y, z).as_vec3();
+                            out.push(v.gradient(p).length());
+                        }
+                    }
+                }
+                out
+            }
+        }
+        let mut mags = volume.visit(Magnitudes(&coords));
+        mags.retain(|m| m.is_finite());
+        Self::from_magnitudes(&mut mags)
+    }
+
+    /// Bins `mags` (finite, ≥ 0; reordered).
+    fn from_magnitudes(mags: &mut [f32]) -> Self {
+        let mut counts = vec![0u64; GRADIENT_BINS];
+        if mags.is_empty() {
+            return GradientHistogram { hi: 1.0, counts };
+        }
+        let q = ((mags.len() - 1) as f64 * 0.999) as usize;
+        let (_, p999, _) = mags.select_nth_unstable_by(q, f32::total_cmp);
+        let hi = (1.5 * *p999).max(f32::MIN_POSITIVE * 1e6);
+        let scale = GRADIENT_BINS as f32 / hi;
+        for &m in mags.iter() {
+            counts[((m * scale) as usize).min(GRADIENT_BINS - 1)] += 1;
+        }
+        GradientHistogram { hi, counts }
+    }
+
+    /// The bin holding magnitude `g`.
+    pub fn bin_of(&self, g: f32) -> usize {
+        ((g / self.hi * self.counts.len() as f32) as usize).min(self.counts.len() - 1)
+    }
+}
+
 /// A volume ready to render.
 #[derive(Debug)]
 pub struct Loaded {
@@ -243,6 +336,8 @@ pub struct Loaded {
     pub info: VolumeInfo,
     /// Value histogram for the TF editor.
     pub histogram: Histogram,
+    /// Gradient-magnitude histogram for the gradient opacity controls.
+    pub gradient_histogram: GradientHistogram,
     /// The player, when the file is a sequence of several frames.
     pub timeline: Option<Timeline>,
 }
@@ -459,6 +554,7 @@ fn load(
             wake();
         }
     });
+    let gradient_histogram = GradientHistogram::of(scene.volume());
     let grid = *scene.grid();
     Ok(Loaded {
         info: VolumeInfo {
@@ -475,6 +571,7 @@ fn load(
         },
         scene,
         histogram,
+        gradient_histogram,
         timeline,
     })
 }
@@ -589,6 +686,52 @@ mod tests {
         assert_eq!(total, h.counts[3] + h.counts[7]);
         let share = h.counts[7] as f64 / total as f64;
         assert!((0.4..0.6).contains(&share), "{share}");
+    }
+
+    /// A ramp `v = 2·x` with x spacing 0.5 has `|∇f| = 4` everywhere but on
+    /// its two x faces, where SPEC §8's index-clamped difference gives 2.
+    #[test]
+    fn gradient_histogram_of_a_ramp_has_the_ramps_slope() {
+        let dims = UVec3::new(20, 6, 7);
+        let grid = Grid::new(dims, Vec3::new(0.5, 1.0, 2.0));
+        let v = AnyVolume::from_fn(grid, |p| (p.x * 2) as u8);
+        let h = GradientHistogram::of(&v);
+        let total: u64 = h.counts.iter().sum();
+        assert_eq!(total, 20 * 6 * 7);
+        let faces = 2 * 6 * 7;
+        assert_eq!(h.counts[h.bin_of(4.0)], total - faces, "{h:?}");
+        assert_eq!(h.counts[h.bin_of(2.0)], faces, "{h:?}");
+        assert!((h.hi - 6.0).abs() < 1e-4, "{}", h.hi);
+    }
+
+    /// A mapped volume larger than the budget is sampled in blocks, and a
+    /// step edge shows as large gradients beside a zero peak.
+    #[test]
+    fn gradient_histogram_of_a_large_mapped_volume_samples_blocks() {
+        let dir = std::env::temp_dir().join(format!("vol_app-ghist-{}", std::process::id()));
+        std::fs::create_dir_all(&dir).unwrap();
+        let path = dir.join("step.vol");
+        let dims = UVec3::splat(80);
+        let v = AnyVolume::from_fn(
+            Grid::new(dims, Vec3::ONE),
+            |p| {
+                if p.x < 30 { 0u8 } else { 200 }
+            },
+        );
+        raycaster::format::vol::write(&path, &v, raycaster::format::vol::VolLayout::Linear)
+            .unwrap();
+        let mapped = raycaster::format::open(&path, LoadMode::Map).unwrap();
+        let h = GradientHistogram::of(&mapped);
+        std::fs::remove_dir_all(&dir).ok();
+        let total: u64 = h.counts.iter().sum();
+        assert_eq!(total, 64u64.pow(3), "4³ blocks of 16³");
+        // Blocks start at x = 0, 21, 42, 64; the one at 21 holds the edge:
+        // voxels x = 29 and 30 have |∇f| = (200 − 0)/2, 16 × 16 of them per
+        // block and plane, in 4 × 4 blocks along y and z.
+        let edge = 2 * 16 * 16 * 16;
+        assert_eq!(h.counts[h.bin_of(100.0)], edge, "{h:?}");
+        assert_eq!(h.counts[0], total - edge);
+        assert!((h.hi - 150.0).abs() < 1e-3, "{}", h.hi);
     }
 
     #[test]

@@ -10,7 +10,7 @@ use raycaster::units::{bytes, significant, value as format_value};
 
 use super::app::ViewerApp;
 use super::dialogs::Purpose;
-use super::loading::{Source, VolumeInfo};
+use super::loading::{GradientHistogram, Source, VolumeInfo};
 use super::state::{
     ClipSettings, LightAngles, MAX_LIGHTS, MAX_VIEWER_PLANES, MODES, PlaneSetting,
     ResolutionChoice, STEP_FACTOR_RANGE, Settings, max_threads, mode_label,
@@ -141,14 +141,11 @@ impl ViewerApp {
         });
     }
 
-    /// Gradient opacity: a checkbox and the g0/g1 sliders, up to the
-    /// volume's largest possible gradient (its value span over the smallest
-    /// spacing).
+    /// Gradient opacity: a checkbox, the volume's gradient-magnitude
+    /// histogram with the opacity weight drawn over it, and the g0/g1
+    /// sliders on the histogram's scale.
     fn gradient_opacity_controls(&mut self, ui: &mut Ui) {
-        let gmax = self.volume.as_ref().map_or(255.0, |v| {
-            let (lo, hi) = v.info.value_range;
-            ((hi - lo) / v.scene.grid().spacing.min_element()).max(1e-3)
-        });
+        let histogram = self.volume.as_ref().map(|v| &v.gradient_histogram);
         let c = &mut self.settings.clip;
         ui.checkbox(&mut c.gradient_opacity, "Gradient opacity (DVR)")
             .on_hover_text(
@@ -156,6 +153,12 @@ impl ViewerApp {
                  homogeneous regions (|∇f| in data units per world unit)",
             );
         if c.gradient_opacity {
+            // The sliders reach the histogram's end, or further when a
+            // setting already does.
+            let gmax = histogram.map_or(255.0, |h| h.hi).max(c.g1);
+            if let Some(h) = histogram {
+                gradient_plot(ui, h, gmax, c.g0, c.g1);
+            }
             let a = ui.add(egui::Slider::new(&mut c.g0, 0.0..=gmax).text("g0: hidden below"));
             let b = ui.add(egui::Slider::new(&mut c.g1, 0.0..=gmax).text("g1: full from"));
             if c.g1 <= c.g0 {
@@ -374,6 +377,49 @@ fn lights_editor(ui: &mut Ui, s: &mut Settings) -> bool {
         s.lights.remove(i);
     }
     moving
+}
+
+/// The gradient-magnitude histogram over `0..=gmax` (log-scaled counts,
+/// as the value histogram behind the TF curve), with the gradient opacity
+/// weight `w(|∇f|)` of `g0`, `g1` drawn over it.
+fn gradient_plot(ui: &mut Ui, h: &GradientHistogram, gmax: f32, g0: f32, g1: f32) {
+    let size = egui::vec2(ui.available_width(), 44.0);
+    let (rect, response) = ui.allocate_exact_size(size, egui::Sense::hover());
+    response.widget_info(|| {
+        egui::WidgetInfo::labeled(egui::Role::Canvas, true, "Gradient-magnitude histogram")
+    });
+    let painter = ui.painter_at(rect);
+    painter.rect_filled(rect, 3.0, egui::Color32::from_gray(24));
+    let x = |g: f32| rect.left() + (g / gmax).clamp(0.0, 1.0) * rect.width();
+    let max = h.counts.iter().copied().max().unwrap_or(0).max(1) as f32;
+    let w = h.hi / h.counts.len() as f32;
+    for (i, &n) in h.counts.iter().enumerate().filter(|(_, n)| **n > 0) {
+        let frac = (1.0 + n as f32).ln() / (1.0 + max).ln();
+        let (x0, x1) = (x(i as f32 * w), x((i + 1) as f32 * w));
+        painter.rect_filled(
+            egui::Rect::from_min_max(
+                egui::pos2(x0, rect.bottom() - frac * rect.height()),
+                egui::pos2(x1.max(x0 + 1.0), rect.bottom()),
+            ),
+            0.0,
+            egui::Color32::from_gray(85),
+        );
+    }
+    let y = |weight: f32| rect.bottom() - weight * (rect.height() - 2.0);
+    let ramp = vec![
+        egui::pos2(rect.left(), y(0.0)),
+        egui::pos2(x(g0), y(0.0)),
+        egui::pos2(x(g1), y(1.0)),
+        egui::pos2(rect.right(), y(1.0)),
+    ];
+    painter.line(
+        ramp,
+        egui::Stroke::new(1.5, egui::Color32::from_rgb(250, 200, 60)),
+    );
+    response.on_hover_text(format!(
+        "|∇f| of sampled voxels, 0 to {:.4}; the line is the opacity weight",
+        gmax
+    ));
 }
 
 /// A collapsible section, open by default.
