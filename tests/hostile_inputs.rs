@@ -223,3 +223,55 @@ fn a_mapped_file_changed_on_disk_is_refused_not_a_crash() {
     let after = render(&scene, RendererKind::Serial).expect("after a rename");
     assert_eq!(before.rgb, after.rgb, "the old contents still render");
 }
+
+/// `OpenOptions::max_memory` refuses a volume that would be decoded or read
+/// into RAM beyond the limit, before allocating, naming the file and both
+/// sizes; a mapped file does not count, and the same files open without
+/// the limit.
+#[test]
+fn a_decode_larger_than_the_memory_limit_is_refused() {
+    use raycaster::format::save::{SaveOptions, save};
+    let dir = TempDir::new("max_memory");
+    let grid = Grid::new(UVec3::splat(32), Vec3::ONE);
+    let volume = AnyVolume::from_fn(grid, |v| (v.x + v.y + v.z) as u16);
+    let vol8 = AnyVolume::from_fn(grid, |v| (v.x ^ v.z) as u8);
+    let gz = dir.path().join("ball.nrrd");
+    let nii_gz = dir.path().join("ball.nii.gz");
+    let vol = dir.path().join("ball.vol");
+    let gzip = SaveOptions {
+        gzip: true,
+        ..SaveOptions::default()
+    };
+    save(&gz, &volume, &gzip).unwrap();
+    save(&nii_gz, &volume, &SaveOptions::default()).unwrap();
+    save(&vol, &vol8, &SaveOptions::default()).unwrap();
+    let limit = 32 * 32 * 32; // bytes: the u8 volume fits, the u16 ones do not
+    let open = |path: &Path, mode: LoadMode, max_memory: Option<u64>| {
+        fmt::open_file(
+            path,
+            &OpenOptions {
+                mode,
+                max_memory,
+                ..OpenOptions::default()
+            },
+        )
+        .map(|o| o.volume)
+    };
+    for path in [&gz, &nii_gz] {
+        let err = open(path, LoadMode::Map, Some(limit - 1))
+            .unwrap_err()
+            .to_string();
+        assert!(err.contains(&*path.to_string_lossy()), "{err}");
+        assert!(err.contains("more than the limit of"), "{err}");
+        assert!(!err.contains('\n'), "{err}");
+        assert!(open(path, LoadMode::Map, None).is_ok());
+        assert!(open(path, LoadMode::Map, Some(2 * limit)).is_ok());
+    }
+    // Read into RAM it counts; mapped it does not.
+    let err = open(&vol, LoadMode::Ram, Some(limit - 1))
+        .unwrap_err()
+        .to_string();
+    assert!(err.contains("more than the limit of"), "{err}");
+    assert!(open(&vol, LoadMode::Ram, Some(limit)).is_ok());
+    assert!(open(&vol, LoadMode::Map, Some(1)).is_ok());
+}

@@ -18,7 +18,7 @@ use raycaster::format::vol::VolLayout;
 use raycaster::format::vseq::{PackOptions, pack};
 use raycaster::prelude::*;
 use raycaster::render::front::{FrameRequest, FrontEvent, FrontOptions, Quality, RendererFront};
-use vol_app::viewer::loading::{LoadJob, Source};
+use vol_app::viewer::loading::{LoadJob, LoadOptions, Source};
 
 /// `VmRSS` (KiB) and `Threads` of this process, from /proc.
 fn rss_and_threads() -> (u64, u64) {
@@ -88,7 +88,10 @@ fn cycle(path: &Path, rng: &mut fastrand::Rng) -> Result<usize, String> {
     };
     let job = LoadJob::start(
         Source::File(path.to_path_buf(), mode, None),
-        rng.bool(),
+        LoadOptions {
+            no_cache: rng.bool(),
+            ..LoadOptions::default()
+        },
         || {},
     );
     let deadline = Instant::now() + Duration::from_secs(60);

@@ -49,6 +49,12 @@ pub struct ViewerArgs {
     /// opened (see `vol_app render --help`).
     #[arg(long)]
     pub no_cache: bool,
+    /// The most memory (GiB) a volume read or decoded into RAM may take
+    /// (gzip NRRD/NIfTI, DICOM, converted raw data, packed sequences); a
+    /// larger one is refused with a message. Memory-mapped files do not
+    /// count. Default: three quarters of the physical memory.
+    #[arg(long, value_name = "GIB", value_parser = parse_positive_gib)]
+    pub max_memory: Option<f64>,
     /// What the viewer shows: the 3D view, the axial/coronal/sagittal
     /// slices, or both (2x2); switchable in the window.
     #[arg(long, value_enum, value_name = "3d|slices|2x2")]
@@ -260,6 +266,7 @@ impl RawArgs {
             raw,
             progress: crate::progress::bar("decoding"),
             volume: 0,
+            max_memory: None,
         }
     }
 }
@@ -560,6 +567,14 @@ fn parse_clip_plane(s: &str) -> Result<raycaster::clip::ClipPlane, String> {
         normal,
         offset: v[3],
     })
+}
+
+/// A size in GiB: finite and positive.
+fn parse_positive_gib(s: &str) -> Result<f64, String> {
+    match s.trim().parse::<f64>() {
+        Ok(v) if v.is_finite() && v > 0.0 => Ok(v),
+        _ => Err(format!("'{s}' is not a positive number of GiB")),
+    }
 }
 
 fn parse_gradient_opacity(s: &str) -> Result<(f32, f32), String> {

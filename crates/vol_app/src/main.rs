@@ -69,6 +69,9 @@ fn run_viewer(args: cli::ViewerArgs) -> Result<(), anyhow_like::Error> {
         tf,
         raw,
         no_cache: args.no_cache,
+        max_memory: args
+            .max_memory
+            .map(|gib| (gib * (1u64 << 30) as f64) as u64),
         layout: args.layout,
     })?;
     Ok(())

@@ -130,8 +130,15 @@ impl super::Reader for DavisReader {
             endian: Endian::Big,
             order: AxisOrder::ZFast,
         };
-        let volume =
-            samples::from_file(path, HEADER_LEN as u64, &layout, None, options.mode, true)?;
+        let volume = samples::from_file(
+            path,
+            HEADER_LEN as u64,
+            &layout,
+            None,
+            options.mode,
+            true,
+            options.max_memory,
+        )?;
         let mut info = VolumeInfo::new(FileFormat::DavisVol, &layout, "raw", len);
         if header.border > 0 {
             info.notes.push(format!(

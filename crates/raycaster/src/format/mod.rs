@@ -118,6 +118,12 @@ pub struct OpenOptions {
     /// says how many there are. Any other index than 0 of a 3-D file is an
     /// error.
     pub volume: u64,
+    /// The most bytes of samples a volume may take when it is decoded or
+    /// read into RAM (gzip, converted or byte-swapped samples, DICOM,
+    /// [`LoadMode::Ram`]); a larger one is an error before anything is
+    /// allocated. Mapped files are not counted: the page cache holds them.
+    /// `None`: no limit beyond what the allocator grants.
+    pub max_memory: Option<u64>,
 }
 
 /// `index` when the file holds more volumes than that, else the error that

@@ -226,7 +226,8 @@ impl super::Reader for NiftiReader {
 }
 
 fn open(path: &Path, options: &super::OpenOptions) -> Result<Opened> {
-    let (mode, progress) = (options.mode, options.progress.as_ref());
+    let (mode, progress, max_memory) =
+        (options.mode, options.progress.as_ref(), options.max_memory);
     let file_bytes = super::file_len(path)?;
     let gz = is_compressed(path)?;
     // The header: from the file, or from the start of the gzip stream.
@@ -309,11 +310,12 @@ fn open(path: &Path, options: &super::OpenOptions) -> Result<Opened> {
             let data = samples::Stream {
                 offset,
                 skip: offset.saturating_sub(HEADER_LEN as u64),
+                max_memory,
                 ..samples::Stream::gzip(file_bytes)
             };
             samples::from_reader(path, stream, &layout, rescale, data)?
         } else {
-            samples::from_file(path, offset, &layout, rescale, mode, false)?
+            samples::from_file(path, offset, &layout, rescale, mode, false, max_memory)?
         };
         (volume, 0, gz)
     } else {
@@ -329,11 +331,14 @@ fn open(path: &Path, options: &super::OpenOptions) -> Result<Opened> {
             let data = samples::Stream {
                 offset,
                 skip: offset,
+                max_memory,
                 ..samples::Stream::gzip(data_bytes)
             };
             samples::from_reader(&data_path, input, &layout, rescale, data)?
         } else {
-            samples::from_file(&data_path, offset, &layout, rescale, mode, false)?
+            samples::from_file(
+                &data_path, offset, &layout, rescale, mode, false, max_memory,
+            )?
         };
         (volume, data_bytes, data_gz)
     };

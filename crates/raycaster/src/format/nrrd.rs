@@ -385,7 +385,8 @@ impl super::Reader for NrrdReader {
 }
 
 fn open(path: &Path, options: &super::OpenOptions) -> Result<Opened> {
-    let (mode, progress) = (options.mode, options.progress.as_ref());
+    let (mode, progress, max_memory) =
+        (options.mode, options.progress.as_ref(), options.max_memory);
     let h = NrrdHeader::read(path)?;
     let layout = h.layout;
     layout.validate(path)?;
@@ -412,7 +413,7 @@ fn open(path: &Path, options: &super::OpenOptions) -> Result<Opened> {
                         )
                     })?,
             };
-            samples::from_file(data, offset + skip, &layout, None, mode, false)?
+            samples::from_file(data, offset + skip, &layout, None, mode, false, max_memory)?
         }
         Encoding::Gzip => {
             use std::io::{Seek, SeekFrom};
@@ -426,6 +427,7 @@ fn open(path: &Path, options: &super::OpenOptions) -> Result<Opened> {
             let stream = samples::Stream {
                 offset: skip,
                 skip,
+                max_memory,
                 ..samples::Stream::gzip(compressed)
             };
             samples::from_reader(data, gzip.decoder(counted), &layout, None, stream)?

@@ -113,7 +113,15 @@ impl super::Reader for RawReader {
             endian: raw.endian,
             order: raw.order,
         };
-        let volume = samples::from_file(path, raw.offset, &layout, None, options.mode, true)?;
+        let volume = samples::from_file(
+            path,
+            raw.offset,
+            &layout,
+            None,
+            options.mode,
+            true,
+            options.max_memory,
+        )?;
         let mut info = VolumeInfo::new(FileFormat::Raw, &layout, "raw", super::file_len(path)?);
         info.notes.push(match raw.order {
             AxisOrder::XFast => "x fastest".to_string(),

@@ -118,6 +118,22 @@ impl SampleLayout {
     }
 }
 
+/// Refuses `bytes` of samples in RAM above `max_memory`
+/// ([`OpenOptions::max_memory`](super::OpenOptions::max_memory)).
+pub(crate) fn check_memory(path: &Path, bytes: u64, max_memory: Option<u64>) -> Result<()> {
+    match max_memory {
+        Some(max) if bytes > max => Err(Error::TooLarge {
+            path: path.to_path_buf(),
+            what: format!(
+                "its samples need {} of memory, more than the limit of {}",
+                crate::units::bytes(bytes),
+                crate::units::bytes(max)
+            ),
+        }),
+        _ => Ok(()),
+    }
+}
+
 /// Builds a volume from samples at byte `offset` of `path`: mapped (or read,
 /// per `mode`) when the bytes can be used as they are, else read and
 /// converted once. The file must hold at least the bytes the layout needs;
@@ -129,6 +145,7 @@ pub fn from_file(
     rescale: Option<Rescale>,
     mode: LoadMode,
     exact: bool,
+    max_memory: Option<u64>,
 ) -> Result<AnyVolume> {
     layout.validate(path)?;
     let bytes = layout.byte_len(path)?;
@@ -155,6 +172,9 @@ pub fn from_file(
             what: "sample count".into(),
         })?;
     if !layout.needs_conversion(rescale) {
+        if mode == LoadMode::Ram {
+            check_memory(path, bytes, max_memory)?;
+        }
         return layout.sample.visit(MapVisitor {
             path,
             offset,
@@ -174,6 +194,7 @@ pub fn from_file(
         rescale,
         Stream {
             offset,
+            max_memory,
             ..Stream::default()
         },
     )
@@ -196,6 +217,8 @@ pub struct Stream {
     /// The compression, named in errors (`Some("gzip")`); `None` for
     /// samples read as stored.
     pub compression: Option<&'static str>,
+    /// [`OpenOptions::max_memory`](super::OpenOptions::max_memory).
+    pub max_memory: Option<u64>,
 }
 
 impl Stream {
@@ -262,6 +285,7 @@ pub fn from_reader(
             )),
         ));
     }
+    check_memory(path, bytes, stream.max_memory)?;
     use std::io::Read;
     std::io::copy(&mut (&mut reader).take(stream.skip), &mut std::io::sink())
         .map_err(|e| stream.read_error(path, e))?;

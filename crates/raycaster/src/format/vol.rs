@@ -203,13 +203,20 @@ pub fn read_header(path: &Path) -> Result<VolHeader> {
 
 /// Opens a `.vol` file, mapped or read into RAM.
 pub fn open(path: &Path, mode: LoadMode) -> Result<AnyVolume> {
-    open_read_header(path, mode).map(|(volume, _)| volume)
+    open_read_header(path, mode, None).map(|(volume, _)| volume)
 }
 
 /// [`open`], also returning the header it read.
-fn open_read_header(path: &Path, mode: LoadMode) -> Result<(AnyVolume, VolHeader)> {
+fn open_read_header(
+    path: &Path,
+    mode: LoadMode,
+    max_memory: Option<u64>,
+) -> Result<(AnyVolume, VolHeader)> {
     let header = read_header(path)?;
     let count = header.sample_count().map_err(|k| Error::format(path, k))?;
+    if mode == LoadMode::Ram {
+        super::samples::check_memory(path, count, max_memory)?;
+    }
     let count = usize::try_from(count).map_err(|_| Error::TooLarge {
         path: path.to_path_buf(),
         what: format!("{count} samples"),
@@ -248,7 +255,7 @@ impl super::Reader for VolReader {
     }
 
     fn open(&self, path: &Path, options: &super::OpenOptions) -> Result<super::Opened> {
-        let (volume, header) = open_read_header(path, options.mode)?;
+        let (volume, header) = open_read_header(path, options.mode, options.max_memory)?;
         let layout = super::SampleLayout {
             dims: header.dims,
             spacing: header.spacing,

@@ -17,7 +17,10 @@ use raycaster::prelude::*;
 
 use super::camera_control::OrbitCamera;
 use super::dialogs::{Answer, Dialogs, Purpose};
-use super::loading::{GradientHistogram, Histogram, LoadJob, Loaded, Source, VolumeInfo};
+use super::loading::{
+    GradientHistogram, Histogram, LoadJob, LoadOptions, Loaded, Source, VolumeInfo,
+    default_memory_limit,
+};
 use super::progressive::Progressive;
 use super::render_link::{RenderLink, RenderRequest, RenderedFrame};
 use super::state::Settings;
@@ -37,6 +40,9 @@ pub struct StartOptions {
     pub raw: Option<raycaster::format::RawOptions>,
     /// Neither read nor write macrocell cache files (`--no-cache`).
     pub no_cache: bool,
+    /// The most memory a volume read or decoded into RAM may take
+    /// (`--max-memory`); `None`: [`default_memory_limit`].
+    pub max_memory: Option<u64>,
     /// The layout to start in (`--layout`); 3D only by default.
     pub layout: Option<super::slices::Layout>,
 }
@@ -91,8 +97,8 @@ pub struct ViewerApp {
     frames_received: u64,
     pub(super) last_scroll: Option<Instant>,
     pub(super) canvas_aspect: f32,
-    /// Every volume opened skips the macrocell cache (`--no-cache`).
-    no_cache: bool,
+    /// How every volume is opened (`--no-cache`, `--max-memory`).
+    load_options: LoadOptions,
     /// Slice views and the layout of the central area.
     pub(super) slices: super::slices::SliceViews,
     /// The turntable export window and its job.
@@ -131,7 +137,10 @@ impl ViewerApp {
             frames_received: 0,
             last_scroll: None,
             canvas_aspect: 1.0,
-            no_cache: start.no_cache,
+            load_options: LoadOptions {
+                no_cache: start.no_cache,
+                max_memory: start.max_memory.or_else(default_memory_limit),
+            },
             slices: Default::default(),
             export: Default::default(),
         };
@@ -170,7 +179,7 @@ impl ViewerApp {
 
     fn start_loading(&mut self, source: Source) {
         let wake = self.ctx.clone();
-        self.loading = Some(LoadJob::start(source, self.no_cache, move || {
+        self.loading = Some(LoadJob::start(source, self.load_options, move || {
             wake.request_repaint()
         }));
     }

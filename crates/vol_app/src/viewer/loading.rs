@@ -399,11 +399,51 @@ pub struct LoadJob {
     started: Instant,
 }
 
+/// How the viewer opens volumes.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct LoadOptions {
+    /// Neither read nor write the macrocell cache (`--no-cache`).
+    pub no_cache: bool,
+    /// The most bytes of samples a volume decoded or read into RAM may take
+    /// (gzip, DICOM, converted raw data, packed sequences): a larger one is
+    /// refused with a message instead of exhausting memory. Mapped files do
+    /// not count. `--max-memory`; by default [`default_memory_limit`].
+    pub max_memory: Option<u64>,
+}
+
+impl Default for LoadOptions {
+    fn default() -> Self {
+        LoadOptions {
+            no_cache: false,
+            max_memory: default_memory_limit(),
+        }
+    }
+}
+
+/// Three quarters of the machine's physical memory (`MemTotal` of
+/// `/proc/meminfo`), leaving room for the viewer itself and the system;
+/// `None` where it cannot be read.
+pub fn default_memory_limit() -> Option<u64> {
+    let meminfo = std::fs::read_to_string("/proc/meminfo").ok()?;
+    let kib: u64 = meminfo
+        .lines()
+        .find_map(|l| l.strip_prefix("MemTotal:"))?
+        .trim()
+        .trim_end_matches("kB")
+        .trim()
+        .parse()
+        .ok()?;
+    Some(kib * 1024 / 4 * 3)
+}
+
 impl LoadJob {
-    /// Starts loading `source` (without the macrocell cache when
-    /// `no_cache`); `wake` is called from the loading thread whenever there
-    /// is news (progress or the result).
-    pub fn start(source: Source, no_cache: bool, wake: impl Fn() + Send + Sync + 'static) -> Self {
+    /// Starts loading `source` with `options`; `wake` is called from the
+    /// loading thread whenever there is news (progress or the result).
+    pub fn start(
+        source: Source,
+        options: LoadOptions,
+        wake: impl Fn() + Send + Sync + 'static,
+    ) -> Self {
         let wake: Arc<dyn Fn() + Send + Sync> = Arc::new(wake);
         let (tx, rx) = crossbeam_channel::bounded(1);
         let progress = Arc::new(Progress::default());
@@ -417,7 +457,7 @@ impl LoadJob {
             .name("vol_app-load".into())
             .spawn(move || {
                 let result = std::panic::catch_unwind(std::panic::AssertUnwindSafe(|| {
-                    load(&source, no_cache, &progress, wake.clone())
+                    load(&source, options, &progress, wake.clone())
                 }))
                 .unwrap_or_else(|_| {
                     Err(format!("{}: internal error while loading", source.name()))
@@ -462,7 +502,10 @@ impl LoadJob {
 
 fn load(
     source: &Source,
-    no_cache: bool,
+    LoadOptions {
+        no_cache,
+        max_memory,
+    }: LoadOptions,
     progress: &Arc<Progress>,
     wake: Arc<dyn Fn() + Send + Sync>,
 ) -> Result<Loaded, String> {
@@ -499,6 +542,7 @@ fn load(
                     w();
                 })),
                 volume: 0,
+                max_memory,
             };
             let packed =
                 raw.is_none() && raycaster::format::detect(path).ok() == Some(FileFormat::Vseq);
@@ -734,16 +778,49 @@ mod tests {
         assert!((h.hi - 150.0).abs() < 1e-3, "{}", h.hi);
     }
 
+    /// The viewer's memory limit refuses a gzip file that would decode past
+    /// it, with the file and the limit in the message.
+    #[test]
+    fn a_volume_over_the_memory_limit_is_an_error_naming_the_limit() {
+        let dir = std::env::temp_dir().join(format!("vol_app-maxmem-{}", std::process::id()));
+        std::fs::create_dir_all(&dir).unwrap();
+        let path = dir.join("v.nrrd");
+        let v = AnyVolume::from_fn(Grid::new(UVec3::splat(40), Vec3::ONE), |p| p.x as u16);
+        let gzip = raycaster::format::save::SaveOptions {
+            gzip: true,
+            ..Default::default()
+        };
+        raycaster::format::save::save(&path, &v, &gzip).unwrap();
+        let source = Source::File(path.clone(), LoadMode::Map, None);
+        let limited = LoadOptions {
+            no_cache: true,
+            max_memory: Some(100_000),
+        };
+        let err = wait(&LoadJob::start(source.clone(), limited, || {})).unwrap_err();
+        let roomy = LoadOptions {
+            max_memory: Some(128_000),
+            ..limited
+        };
+        let ok = wait(&LoadJob::start(source, roomy, || {}));
+        std::fs::remove_dir_all(&dir).ok();
+        assert!(
+            err.contains("v.nrrd") && err.contains("more than the limit of"),
+            "{err}"
+        );
+        assert!(ok.is_ok());
+        assert!(default_memory_limit().is_some_and(|m| m > 0));
+    }
+
     #[test]
     fn the_demo_loads_and_a_missing_file_is_an_error() {
-        let job = LoadJob::start(Source::Demo, false, || {});
+        let job = LoadJob::start(Source::Demo, LoadOptions::default(), || {});
         let loaded = wait(&job).unwrap();
         assert_eq!(loaded.info.dims, UVec3::splat(crate::demo::DEMO_SIZE));
         assert_eq!(loaded.info.storage, StorageKind::Ram);
         assert!(loaded.histogram.counts.iter().sum::<u64>() > 0);
         let job = LoadJob::start(
             Source::File("/nonexistent/x.vol".into(), LoadMode::Map, None),
-            false,
+            LoadOptions::default(),
             || {},
         );
         let err = wait(&job).unwrap_err();

@@ -99,7 +99,7 @@ impl Reader for DicomReader {
 
 #[cfg(feature = "dicom")]
 fn open_series(path: &Path, options: &OpenOptions) -> Result<Opened> {
-    series::open(path, options.progress.as_ref())
+    series::open(path, options.progress.as_ref(), options.max_memory)
 }
 
 #[cfg(not(feature = "dicom"))]

@@ -21,7 +21,11 @@ use crate::volume::{AxisOrder, Grid};
 
 /// Opens the DICOM series in directory `path`, or the series the file
 /// `path` belongs to, reporting the fraction of slices read.
-pub(super) fn open(path: &Path, progress: Option<&Progress>) -> Result<Opened> {
+pub(super) fn open(
+    path: &Path,
+    progress: Option<&Progress>,
+    max_memory: Option<u64>,
+) -> Result<Opened> {
     let meta = std::fs::metadata(path).map_err(|e| Error::io(path, e))?;
     let (dir, chosen_file) = if meta.is_dir() {
         (path.to_path_buf(), None)
@@ -119,7 +123,7 @@ pub(super) fn open(path: &Path, progress: Option<&Progress>) -> Result<Opened> {
         ));
     }
     let series: Vec<&Header> = groups[pick].iter().map(|&i| &headers[i]).collect();
-    build(series, notes, progress)
+    build(series, notes, progress, max_memory)
 }
 
 /// The directory's regular files (symbolic links followed), by name.
@@ -211,6 +215,7 @@ fn build(
     mut series: Vec<&Header>,
     mut notes: Vec<String>,
     progress: Option<&Progress>,
+    max_memory: Option<u64>,
 ) -> Result<Opened> {
     // Instance Number, then file name, decides between equal positions.
     series.sort_by(|a, b| {
@@ -336,6 +341,7 @@ fn build(
         order: AxisOrder::XFast,
     };
     layout.validate(&first.path)?;
+    super::super::samples::check_memory(&first.path, layout.byte_len(&first.path)?, max_memory)?;
     let grid = Grid::new(dims, spacing);
     let volume = format.sample_type().visit(ReadVolume {
         grid,

@@ -22,7 +22,7 @@ use crate::volume::AnyVolume;
 
 /// Opens a series (or the series of a file) without progress.
 fn open(path: &Path) -> crate::Result<Opened> {
-    super::series::open(path, None)
+    super::series::open(path, None, None)
 }
 
 /// The unit normal of `o`, which must define a plane.

@@ -767,6 +767,9 @@ impl super::Reader for VseqReader {
     fn open(&self, path: &Path, options: &super::OpenOptions) -> Result<Opened> {
         let file = VseqFile::open(path)?;
         let k = super::check_volume_index(path, options.volume, u64::from(file.frames()))?;
+        let h = file.header();
+        let bytes = h.dims.as_u64vec3().element_product() * h.sample.size() as u64;
+        super::samples::check_memory(path, bytes, options.max_memory)?;
         let volume = file.frame(k as u32)?;
         let mut info = file.info();
         info.notes.push(format!("opened frame {k}"));
