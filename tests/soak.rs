@@ -184,7 +184,18 @@ fn open_render_close_returns_to_baseline() {
     for f in &files {
         cycle(f, &mut rng).unwrap_or_else(|e| panic!("warm-up: {e}"));
     }
-    let (rss0, threads0) = rss_and_threads();
+    // The warm-up's last loader and front threads may still be exiting:
+    // take the baseline once the thread count has stopped falling.
+    let mut base = rss_and_threads();
+    for _ in 0..50 {
+        std::thread::sleep(Duration::from_millis(20));
+        let now = rss_and_threads();
+        if now.1 >= base.1 {
+            break;
+        }
+        base = now;
+    }
+    let (rss0, threads0) = base;
     let start = Instant::now();
     let (mut cycles, mut frames, mut peak) = (0u64, 0usize, rss0);
     let mut samples = Vec::new();
@@ -220,7 +231,10 @@ fn open_render_close_returns_to_baseline() {
         peak
     );
     assert!(cycles > 0);
-    assert_eq!(threads1, threads0, "threads left behind");
+    assert!(
+        threads1 <= threads0,
+        "threads left behind: {threads0} -> {threads1}"
+    );
     // The allocator keeps some freed memory; a leak of a volume a cycle
     // (40×36×32 bytes and more in RAM, plus its scene) would pass this
     // within a few hundred cycles.
