@@ -55,6 +55,10 @@ pub struct ViewerArgs {
     /// count. Default: three quarters of the physical memory.
     #[arg(long, value_name = "GIB", value_parser = parse_positive_gib)]
     pub max_memory: Option<f64>,
+    /// For a sequence FILE (4-D NIfTI/NRRD, folder of frames, .vseq): the
+    /// frame to show first, from 0 (play with Space, step with N / M).
+    #[arg(long, value_name = "K")]
+    pub frame: Option<u32>,
     /// What the viewer shows: the 3D view, the axial/coronal/sagittal
     /// slices, or both (2x2); switchable in the window.
     #[arg(long, value_enum, value_name = "3d|slices|2x2")]

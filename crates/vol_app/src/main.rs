@@ -73,6 +73,7 @@ fn run_viewer(args: cli::ViewerArgs) -> Result<(), anyhow_like::Error> {
             .max_memory
             .map(|gib| (gib * (1u64 << 30) as f64) as u64),
         layout: args.layout,
+        frame: args.frame,
     })?;
     Ok(())
 }

@@ -1134,6 +1134,37 @@ fn image(a: &ViewerApp) -> Vec<u8> {
 }
 
 #[test]
+fn frame_starts_on_a_frame_and_space_plays_and_pauses() {
+    let dir = TempDir::new("sequence_start");
+    let path = sequence_file(&dir, "moving.vseq", 5);
+    let start = |frame| StartOptions {
+        file: Some(path.clone()),
+        tf_preset: Some("shapes".into()),
+        frame: Some(frame),
+        ..Default::default()
+    };
+    let mut h = harness(start(3), quick_settings());
+    settle(&mut h);
+    show_frame(&mut h, 3);
+    assert!(app(&h).error().is_none(), "{:?}", app(&h).error());
+    h.get_by_label("Frame 4/5");
+
+    h.key_press(egui::Key::Space);
+    h.step();
+    assert!(app(&h).timeline().unwrap().is_playing());
+    h.key_press(egui::Key::Space);
+    h.step();
+    assert!(!app(&h).timeline().unwrap().is_playing());
+
+    // A frame past the end is an error on screen; frame 0 stays.
+    let mut h = harness(start(5), quick_settings());
+    settle(&mut h);
+    let err = app(&h).error().expect("an error").to_string();
+    assert!(err.contains("--frame 5") && err.contains("0 to 4"), "{err}");
+    assert_eq!(frame_index(app(&h)), 0);
+}
+
+#[test]
 fn a_sequence_shows_a_timeline_that_steps_with_buttons_and_keys() {
     let dir = TempDir::new("sequence");
     let path = sequence_file(&dir, "moving.vseq", 5);

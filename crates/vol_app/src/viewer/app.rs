@@ -45,6 +45,8 @@ pub struct StartOptions {
     pub max_memory: Option<u64>,
     /// The layout to start in (`--layout`); 3D only by default.
     pub layout: Option<super::slices::Layout>,
+    /// The frame of a sequence `file` to show first (`--frame`, from 0).
+    pub frame: Option<u32>,
 }
 
 /// The volume on screen.
@@ -418,6 +420,7 @@ impl ViewerApp {
             timeline,
         } = loaded;
         let sample_type = info.sample_type;
+        let start_frame = self.start.as_ref().and_then(|s| s.frame);
         let s = &mut self.settings;
         match self.start.take() {
             Some(StartOptions { tf: Some(tf), .. }) => {
@@ -465,6 +468,22 @@ impl ViewerApp {
         // Frame costs learned on the previous volume say nothing of this one.
         self.progressive.reset();
         self.timeline = timeline;
+        if let Some(k) = start_frame {
+            match &mut self.timeline {
+                Some(t) if k < t.frames() => t.go_to(k),
+                Some(t) => {
+                    self.error = Some(format!(
+                        "--frame {k}: {} has frames 0 to {}",
+                        info.name,
+                        t.frames() - 1
+                    ))
+                }
+                None if k > 0 => {
+                    self.error = Some(format!("--frame {k}: {} is not a sequence", info.name))
+                }
+                None => {}
+            }
+        }
         self.volume = Some(Volume {
             scene,
             info,

@@ -213,7 +213,7 @@ impl ViewerApp {
         t.keep_polling(&self.ctx);
     }
 
-    /// The timeline bar under the canvas, and the N / M keys.
+    /// The timeline bar under the canvas, and the N / M / Space keys.
     pub(super) fn timeline_bar(&mut self, ui: &mut Ui) {
         let Some(t) = &mut self.timeline else { return };
         let s = &mut self.settings;
@@ -224,6 +224,12 @@ impl ViewerApp {
             }
             if ui.input_mut(|i| i.consume_key(Modifiers::NONE, Key::M)) {
                 t.step(1, s.play_loop);
+            }
+            // Space plays and pauses, unless a focused widget (a button)
+            // would take it as a click.
+            let unfocused = ui.ctx().memory(|m| m.focused().is_none());
+            if unfocused && ui.input_mut(|i| i.consume_key(Modifiers::NONE, Key::Space)) {
+                t.play(!t.playing, s.play_loop, s.play_fps);
             }
         }
         ui.horizontal(|ui| {
@@ -237,7 +243,7 @@ impl ViewerApp {
             let label = if t.playing { "Pause" } else { "Play" };
             // As wide either way, so that the slider does not shift.
             let play = egui::Button::new(label).min_size(egui::vec2(52.0, 0.0));
-            if ui.add(play).clicked() {
+            if ui.add(play).on_hover_text("Play / pause (Space)").clicked() {
                 t.play(!t.playing, s.play_loop, s.play_fps);
             }
             if ui.button("+1").on_hover_text("Next frame (M)").clicked() {
