@@ -41,6 +41,14 @@ pub enum Error {
         /// What would not fit.
         what: String,
     },
+    /// A part of a file cannot be read on its own (distributed rendering).
+    #[error("cannot read part of {}: {reason}", path.display())]
+    Partial {
+        /// The file.
+        path: PathBuf,
+        /// Why, and what to do instead.
+        reason: String,
+    },
     /// Samples, dimensions and layout of a volume built in memory disagree.
     #[error("invalid volume: {0}")]
     InvalidVolume(String),

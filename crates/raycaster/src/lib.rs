@@ -68,6 +68,7 @@ pub mod camera;
 #[cfg(feature = "clap")]
 pub mod cli;
 pub mod clip;
+pub mod distributed;
 pub mod error;
 pub mod format;
 pub mod geometry;

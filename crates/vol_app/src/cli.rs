@@ -504,6 +504,22 @@ pub struct RenderArgs {
     /// value ranges from the samples.
     #[arg(long)]
     pub no_cache: bool,
+    /// Sort-last distributed rendering under MPI (`mpirun -n P vol_app
+    /// render FILE --distributed ...`): each rank reads and renders one
+    /// part of the volume, rank 0 composites and writes the PNG and
+    /// --stats. Needs a vol_app built with `--features mpi`.
+    #[arg(long, conflicts_with_all = ["frames", "turntable", "progressive"])]
+    pub distributed: bool,
+    /// With --distributed: read only each rank's part of the file (part;
+    /// .vol, raw NRRD and NIfTI) or the whole file on every rank (whole;
+    /// any format, e.g. gzip-compressed).
+    #[arg(
+        long,
+        value_name = "HOW",
+        default_value = "part",
+        requires = "distributed"
+    )]
+    pub distributed_read: raycaster::distributed::ReadPolicy,
     /// How to read a headerless file.
     #[command(flatten)]
     pub raw: RawArgs,

@@ -6,6 +6,7 @@
 
 mod cli;
 mod convert_cmd;
+mod distributed_cmd;
 mod info_cmd;
 mod metaballs_cmd;
 mod pack_cmd;

@@ -18,6 +18,9 @@ const PLAYBACK_AHEAD: u32 = 3;
 
 /// Runs the `render` subcommand.
 pub fn run(args: &RenderArgs) -> Result<(), Error> {
+    if args.distributed {
+        return crate::distributed_cmd::run(args);
+    }
     if args.mode == RenderMode::Metaballs {
         if args.turntable.is_some() {
             return Err(
@@ -91,79 +94,10 @@ pub fn run(args: &RenderArgs) -> Result<(), Error> {
     let sample_type = scene.volume().sample_type();
     let load_ms = ms(load_start.elapsed());
 
-    let tf = match (&args.tf, &args.tf_preset) {
-        (Some(path), _) => TransferFunction::from_json_file(path)?,
-        (None, Some(name)) => {
-            TransferFunction::preset_for_data(name, sample_type, scene.value_range()).ok_or_else(
-                || {
-                    format!(
-                        "unknown transfer function preset '{name}' (known: {})",
-                        PRESET_NAMES.join(", ")
-                    )
-                },
-            )?
-        }
-        (None, None) => {
-            let name = if args.file.is_some() {
-                "ramp"
-            } else {
-                crate::demo::DEMO_TF
-            };
-            TransferFunction::preset(name, sample_type).ok_or("built-in preset missing")?
-        }
-    };
-
+    let tf = transfer_function(args, sample_type, scene.value_range())?;
     let (width, height) = args.size;
     let camera = camera_for(args, &scene.grid().bounds())?;
-
-    let (lo, hi) = scene.value_range();
-    let options = RenderOptions {
-        mode: args.mode,
-        step: args.step,
-        ert: args.ert.on(),
-        ert_threshold: args.ert_threshold,
-        ess: args.ess.on(),
-        shading: args.shading.on(),
-        phong: None,
-        iso_value: args.iso.unwrap_or(0.5 * (lo + hi)),
-        lights: args.lights.clone(),
-        shadows: args.shadows.on(),
-        iso_normals: args.normals,
-        background: args.background,
-        clip: raycaster::clip::Clip {
-            clip_box: args.clip_box,
-            planes: args.clip_planes.clone(),
-        },
-        gradient_opacity: args
-            .gradient_opacity
-            .map(|(g0, g1)| raycaster::integrator::GradientOpacity { g0, g1 }),
-        jitter: args.jitter.on(),
-        seed: args.seed,
-    };
-    if args.gradient_opacity.is_some() && args.mode != RenderMode::Dvr {
-        // It scales opacity per unit length, which only DVR composites.
-        return Err(format!(
-            "--gradient-opacity applies to --mode dvr only, not {}",
-            format!("{:?}", args.mode).to_lowercase()
-        )
-        .into());
-    }
-    if args.clip_planes.len() > raycaster::clip::MAX_CLIP_PLANES {
-        return Err(format!(
-            "--clip-plane given {} times, at most {}",
-            args.clip_planes.len(),
-            raycaster::clip::MAX_CLIP_PLANES
-        )
-        .into());
-    }
-    if let Some(s) = args.step
-        && !(s.is_finite() && s > 0.0)
-    {
-        return Err(format!("--step {s} must be a finite number greater than 0").into());
-    }
-    if args.background.min_element() < 0.0 || args.background.max_element() > 1.0 {
-        return Err("--background channels must be in 0..1".into());
-    }
+    let options = render_options(args, scene.value_range())?;
 
     let mut renderer: AnyRenderer = match args.renderer {
         RendererKind::Serial => Box::new(SerialRenderer::new()),
@@ -396,6 +330,87 @@ fn play(
         );
     }
     Ok(())
+}
+
+/// The transfer function of the command line for data of `sample_type`
+/// with values in `value_range` (`--tf`, `--tf-preset`, else `ramp`, or the
+/// demo's for the demo volume).
+pub fn transfer_function(
+    args: &RenderArgs,
+    sample_type: SampleType,
+    value_range: (f32, f32),
+) -> Result<TransferFunction, Error> {
+    Ok(match (&args.tf, &args.tf_preset) {
+        (Some(path), _) => TransferFunction::from_json_file(path)?,
+        (None, Some(name)) => TransferFunction::preset_for_data(name, sample_type, value_range)
+            .ok_or_else(|| {
+                format!(
+                    "unknown transfer function preset '{name}' (known: {})",
+                    PRESET_NAMES.join(", ")
+                )
+            })?,
+        (None, None) => {
+            let name = if args.file.is_some() {
+                "ramp"
+            } else {
+                crate::demo::DEMO_TF
+            };
+            TransferFunction::preset(name, sample_type).ok_or("built-in preset missing")?
+        }
+    })
+}
+
+/// The render options of the command line, checked, for data with values
+/// in `(lo, hi)` (the default iso value is their middle).
+pub fn render_options(args: &RenderArgs, (lo, hi): (f32, f32)) -> Result<RenderOptions, Error> {
+    let options = RenderOptions {
+        mode: args.mode,
+        step: args.step,
+        ert: args.ert.on(),
+        ert_threshold: args.ert_threshold,
+        ess: args.ess.on(),
+        shading: args.shading.on(),
+        phong: None,
+        iso_value: args.iso.unwrap_or(0.5 * (lo + hi)),
+        lights: args.lights.clone(),
+        shadows: args.shadows.on(),
+        iso_normals: args.normals,
+        background: args.background,
+        clip: raycaster::clip::Clip {
+            clip_box: args.clip_box,
+            planes: args.clip_planes.clone(),
+        },
+        gradient_opacity: args
+            .gradient_opacity
+            .map(|(g0, g1)| raycaster::integrator::GradientOpacity { g0, g1 }),
+        jitter: args.jitter.on(),
+        seed: args.seed,
+    };
+    if args.gradient_opacity.is_some() && args.mode != RenderMode::Dvr {
+        // It scales opacity per unit length, which only DVR composites.
+        return Err(format!(
+            "--gradient-opacity applies to --mode dvr only, not {}",
+            format!("{:?}", args.mode).to_lowercase()
+        )
+        .into());
+    }
+    if args.clip_planes.len() > raycaster::clip::MAX_CLIP_PLANES {
+        return Err(format!(
+            "--clip-plane given {} times, at most {}",
+            args.clip_planes.len(),
+            raycaster::clip::MAX_CLIP_PLANES
+        )
+        .into());
+    }
+    if let Some(s) = args.step
+        && !(s.is_finite() && s > 0.0)
+    {
+        return Err(format!("--step {s} must be a finite number greater than 0").into());
+    }
+    if args.background.min_element() < 0.0 || args.background.max_element() > 1.0 {
+        return Err("--background channels must be in 0..1".into());
+    }
+    Ok(options)
 }
 
 /// The camera of the command line, framing `bounds` by default.

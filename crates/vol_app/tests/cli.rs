@@ -863,3 +863,16 @@ fn metaballs_render_from_points_files_and_volumes() {
         assert_one_line_error(&out, needle);
     }
 }
+
+/// Without the `mpi` feature `--distributed` is one line saying how to get
+/// it; `--distributed-read` needs `--distributed`.
+#[test]
+#[cfg(not(feature = "mpi"))]
+fn distributed_without_the_mpi_feature_says_how_to_build_it() {
+    let dir = TempDir::new("distributed");
+    let file = ball_file(&dir, VolLayout::Linear);
+    let out = output(vol_app_on("render", &file).arg("--distributed"));
+    assert_one_line_error(&out, "--features mpi");
+    let out = output(vol_app_on("render", &file).args(["--distributed-read", "whole"]));
+    assert!(!out.status.success());
+}

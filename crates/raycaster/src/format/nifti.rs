@@ -244,55 +244,22 @@ fn open(path: &Path, options: &super::OpenOptions) -> Result<Opened> {
         .read_to_end(&mut head)
         .map_err(|e| invalid(path, format!("cannot read the header ({e})")))?;
     let h = NiftiHeader::parse(&head).map_err(|m| invalid(path, m))?;
-    let ty = h
-        .sample_type()
-        .map_err(|m| Error::format(path, FormatError::Unsupported(m)))?;
-
-    let ndim = h.dim[0];
-    if !(1..=7).contains(&ndim) {
-        return Err(invalid(path, format!("dim[0] is {ndim} (must be 1..=7)")));
-    }
-    let dim_of = |i: usize| if i <= ndim as usize { h.dim[i] } else { 1 };
-    let dims: Vec<i64> = (1..=3).map(|i| dim_of(i) as i64).collect();
-    if dims.iter().any(|&d| d < 1) {
-        return Err(invalid(
-            path,
-            format!(
-                "dimensions {}x{}x{} (each must be at least 1)",
-                dims[0], dims[1], dims[2]
-            ),
-        ));
-    }
-    let volumes: i64 = (4..=7).map(|i| (dim_of(i) as i64).max(1)).product();
-    let volumes = volumes as u64;
+    let Described {
+        layout,
+        volumes,
+        mut notes,
+    } = describe(path, &h)?;
     let index = super::check_volume_index(path, options.volume, volumes)?;
-    let mut notes = Vec::new();
     if volumes > 1 {
-        notes.push(format!(
-            "{ndim}-D file with {volumes} volumes: opened volume {index}"
-        ));
+        // First, as before the spacing notes.
+        notes.insert(
+            0,
+            format!(
+                "{}-D file with {volumes} volumes: opened volume {index}",
+                h.dim[0]
+            ),
+        );
     }
-    let spacing = Vec3::from_array(std::array::from_fn(|i| {
-        let p = h.pixdim[i + 1].abs();
-        if p.is_finite() && p > 0.0 { p } else { 0.0 }
-    }));
-    let spacing = if spacing.min_element() > 0.0 {
-        spacing
-    } else {
-        notes.push(format!(
-            "pixdim {:?} has zero or invalid spacing; using 1 there",
-            &h.pixdim[1..4]
-        ));
-        Vec3::select(spacing.cmpgt(Vec3::ZERO), spacing, Vec3::ONE)
-    };
-    let layout = SampleLayout {
-        dims: UVec3::new(dims[0] as u32, dims[1] as u32, dims[2] as u32),
-        spacing,
-        sample: ty,
-        endian: h.endian,
-        order: AxisOrder::XFast,
-    };
-    layout.validate(path)?;
     let rescale = h.rescale();
     // The volumes follow each other (dimensions 4..7 are the slowest).
     let skip = index.saturating_mul(layout.byte_len(path)?);
@@ -353,6 +320,118 @@ fn open(path: &Path, options: &super::OpenOptions) -> Result<Opened> {
     info.notes = notes;
     info.volumes = volumes;
     Ok(Opened { volume, info })
+}
+
+/// What a parsed header says about the samples.
+struct Described {
+    /// Dimensions, spacing, type, byte order (x fastest).
+    layout: SampleLayout,
+    /// Volumes along dimensions 4..7 (1 for a 3-D file).
+    volumes: u64,
+    /// What was assumed (invalid spacing).
+    notes: Vec<String>,
+}
+
+/// The sample layout of the header `h` of `path`, validated.
+fn describe(path: &Path, h: &NiftiHeader) -> Result<Described> {
+    let ty = h
+        .sample_type()
+        .map_err(|m| Error::format(path, FormatError::Unsupported(m)))?;
+
+    let ndim = h.dim[0];
+    if !(1..=7).contains(&ndim) {
+        return Err(invalid(path, format!("dim[0] is {ndim} (must be 1..=7)")));
+    }
+    let dim_of = |i: usize| if i <= ndim as usize { h.dim[i] } else { 1 };
+    let dims: Vec<i64> = (1..=3).map(|i| dim_of(i) as i64).collect();
+    if dims.iter().any(|&d| d < 1) {
+        return Err(invalid(
+            path,
+            format!(
+                "dimensions {}x{}x{} (each must be at least 1)",
+                dims[0], dims[1], dims[2]
+            ),
+        ));
+    }
+    let volumes: i64 = (4..=7).map(|i| (dim_of(i) as i64).max(1)).product();
+    let volumes = volumes as u64;
+    let mut notes = Vec::new();
+    let spacing = Vec3::from_array(std::array::from_fn(|i| {
+        let p = h.pixdim[i + 1].abs();
+        if p.is_finite() && p > 0.0 { p } else { 0.0 }
+    }));
+    let spacing = if spacing.min_element() > 0.0 {
+        spacing
+    } else {
+        notes.push(format!(
+            "pixdim {:?} has zero or invalid spacing; using 1 there",
+            &h.pixdim[1..4]
+        ));
+        Vec3::select(spacing.cmpgt(Vec3::ZERO), spacing, Vec3::ONE)
+    };
+    let layout = SampleLayout {
+        dims: UVec3::new(dims[0] as u32, dims[1] as u32, dims[2] as u32),
+        spacing,
+        sample: ty,
+        endian: h.endian,
+        order: AxisOrder::XFast,
+    };
+    layout.validate(path)?;
+    Ok(Described {
+        layout,
+        volumes,
+        notes,
+    })
+}
+
+/// Where the samples of an uncompressed NIfTI file are.
+#[derive(Debug, Clone, PartialEq)]
+pub struct SampleLocation {
+    /// The file holding them (the `.nii`, or the `.img` of a `.hdr`).
+    pub data: PathBuf,
+    /// Byte offset of the first volume's first sample.
+    pub offset: u64,
+    /// Dimensions, spacing, type, byte order (x fastest).
+    pub layout: SampleLayout,
+    /// `stored·slope + intercept`, when not the identity.
+    pub rescale: Option<Rescale>,
+}
+
+/// Where the samples of the first volume of an uncompressed single-file
+/// NIfTI (`.nii`) or `.hdr`/`.img` pair are, for readers of parts of it
+/// ([`crate::distributed`]). `Ok(None)` when the data is gzip-compressed.
+pub fn locate_samples(path: &Path) -> Result<Option<SampleLocation>> {
+    if is_compressed(path)? {
+        return Ok(None);
+    }
+    let head = super::read_head(path, HEADER_LEN)?;
+    let h = NiftiHeader::parse(&head).map_err(|m| invalid(path, m))?;
+    let described = describe(path, &h)?;
+    if h.single_file {
+        if !(h.vox_offset.is_finite() && h.vox_offset >= HEADER_LEN as f32) {
+            return Err(invalid(
+                path,
+                format!("vox_offset {} (must be at least 348)", h.vox_offset),
+            ));
+        }
+        Ok(Some(SampleLocation {
+            data: path.to_path_buf(),
+            offset: h.vox_offset as u64,
+            layout: described.layout,
+            rescale: h.rescale(),
+        }))
+    } else {
+        let data = image_file_for(path)?;
+        if is_compressed(&data)? {
+            return Ok(None);
+        }
+        Ok(Some(SampleLocation {
+            data,
+            offset: h.vox_offset.max(0.0) as u64,
+            layout: described.layout,
+            rescale: h.rescale(),
+        }))
+    }
 }
 
 /// The `.img` file of a `.hdr` (same stem, also `.img.gz`).

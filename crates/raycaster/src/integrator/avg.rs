@@ -3,7 +3,7 @@
 use glam::{Vec3, Vec4};
 
 use super::batch::fold_values;
-use super::{FrameContext, Integrator, Span};
+use super::{Fragment, FrameContext, Integrator, Span};
 use crate::volume::Volume;
 
 /// Running sum and count.
@@ -30,10 +30,27 @@ impl Integrator for AvgState {
 
     /// Grey `mean / max` with `A = 1` when the ray had any sample.
     fn resolve<V: Volume>(&self, ctx: &FrameContext<'_, V>) -> Vec4 {
-        if self.count == 0 {
+        Self::colour(self.sum, self.count, ctx.avg_norm)
+    }
+
+    /// The sum and the count.
+    fn fragment<V: Volume>(&self, _ctx: &FrameContext<'_, V>) -> Fragment {
+        Fragment {
+            value: self.sum as f32,
+            count: self.count as u32,
+            ..Fragment::default()
+        }
+    }
+}
+
+impl AvgState {
+    /// Grey `mean / norm` with `A = 1` for `count > 0` samples summing to
+    /// `sum`, else transparent.
+    pub fn colour(sum: f64, count: u64, norm: f32) -> Vec4 {
+        if count == 0 {
             return Vec4::ZERO;
         }
-        let g = (self.sum / self.count as f64) as f32 / ctx.avg_norm;
+        let g = (sum / count as f64) as f32 / norm;
         Vec3::splat(g).extend(1.0)
     }
 }

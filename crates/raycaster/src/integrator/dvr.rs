@@ -4,7 +4,7 @@
 use glam::{UVec3, Vec3, Vec4};
 
 use super::batch::SampleBatch;
-use super::{FrameContext, GradientOpacity, Integrator, Occupancy, RaySegment, Span};
+use super::{Fragment, FrameContext, GradientOpacity, Integrator, Occupancy, RaySegment, Span};
 use crate::accel::RunKind;
 use crate::simd::{self, Isa, Kernel, LANES};
 use crate::volume::{
@@ -78,6 +78,14 @@ impl Integrator for DvrState {
 
     fn resolve<V: Volume>(&self, _ctx: &FrameContext<'_, V>) -> Vec4 {
         self.color.extend(self.alpha)
+    }
+
+    /// The premultiplied colour and opacity, composited "over" later.
+    fn fragment<V: Volume>(&self, ctx: &FrameContext<'_, V>) -> Fragment {
+        Fragment {
+            rgba: self.resolve(ctx),
+            ..Fragment::default()
+        }
     }
 }
 

@@ -12,8 +12,9 @@ use std::marker::PhantomData;
 use glam::Vec4;
 
 use super::batch::fold_values;
-use super::{FrameContext, Integrator, Span};
+use super::{Fragment, FrameContext, Integrator, Span};
 use crate::accel::RunKind;
+use crate::transfer::TransferFunction;
 use crate::volume::Volume;
 
 /// Which extremum a projection keeps.
@@ -105,10 +106,27 @@ impl<E: Extremum> Integrator for ProjectionState<E> {
 
     /// `C = a·c, A = a` of the TF at the extremum (no step correction).
     fn resolve<V: Volume>(&self, ctx: &FrameContext<'_, V>) -> Vec4 {
-        if self.value == E::START {
+        Self::colour(ctx.tf, self.value)
+    }
+
+    /// The extremum and whether there was one.
+    fn fragment<V: Volume>(&self, _ctx: &FrameContext<'_, V>) -> Fragment {
+        Fragment {
+            value: self.value,
+            count: (self.value != E::START) as u32,
+            ..Fragment::default()
+        }
+    }
+}
+
+impl<E: Extremum> ProjectionState<E> {
+    /// The pixel of extremum `value` (`E::START`: no sample): `C = a·c,
+    /// A = a` of `tf` at it (no step correction).
+    pub fn colour(tf: &TransferFunction, value: f32) -> Vec4 {
+        if value == E::START {
             return Vec4::ZERO;
         }
-        let e = ctx.tf.evaluate(self.value);
+        let e = tf.evaluate(value);
         (e.truncate() * e.w).extend(e.w)
     }
 }

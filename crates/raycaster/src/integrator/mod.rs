@@ -15,6 +15,7 @@
 mod avg;
 mod batch;
 mod dvr;
+mod fragment;
 mod iso;
 mod mip;
 mod none;
@@ -23,6 +24,7 @@ mod shading;
 
 pub use avg::AvgState;
 pub use dvr::DvrState;
+pub use fragment::Fragment;
 pub use iso::{CellCubic, IsoHit, IsoNormals, IsoState};
 
 pub use mip::{Extremum, Max, Min, MinipState, MipState, ProjectionState};
@@ -221,6 +223,10 @@ pub trait Integrator: Copy + Default + Send + Sync + std::fmt::Debug + 'static {
 
     /// Premultiplied colour and opacity of the finished ray.
     fn resolve<V: Volume>(&self, ctx: &FrameContext<'_, V>) -> Vec4;
+
+    /// What this (part of a) ray hands over for sort-last compositing: the
+    /// record that the parts of a ray merge by (see [`Fragment`]).
+    fn fragment<V: Volume>(&self, ctx: &FrameContext<'_, V>) -> Fragment;
 }
 
 /// Everything an integrator needs for one frame: the volume, the tabulated

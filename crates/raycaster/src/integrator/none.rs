@@ -4,7 +4,7 @@
 
 use glam::Vec4;
 
-use super::{FrameContext, Integrator, Span};
+use super::{Fragment, FrameContext, Integrator, Span};
 use crate::volume::Volume;
 
 /// Takes no samples; every ray stays transparent. The volume renderers
@@ -27,5 +27,9 @@ impl Integrator for NoSamples {
 
     fn resolve<V: Volume>(&self, _ctx: &FrameContext<'_, V>) -> Vec4 {
         Vec4::ZERO
+    }
+
+    fn fragment<V: Volume>(&self, _ctx: &FrameContext<'_, V>) -> Fragment {
+        Fragment::default()
     }
 }

@@ -29,7 +29,7 @@ mod frame;
 pub mod front;
 pub mod object;
 mod options;
-mod plan;
+pub(crate) mod plan;
 mod serial;
 mod tiled;
 

@@ -269,7 +269,20 @@ impl FramePlan {
         tf: &'a TransferFunction,
         options: &RenderOptions,
     ) -> FrameContext<'a, V> {
-        let (lo, hi) = scene.value_range();
+        self.context_with_range(volume, scene, tf, options, scene.value_range())
+    }
+
+    /// [`FramePlan::context`] with the data's value range given (it sets
+    /// the shading's gradient threshold): a part of a distributed volume
+    /// uses the whole volume's range, so every part shades alike.
+    pub fn context_with_range<'a, V: Volume>(
+        &'a self,
+        volume: &'a V,
+        scene: &'a Scene,
+        tf: &'a TransferFunction,
+        options: &RenderOptions,
+        (lo, hi): (f32, f32),
+    ) -> FrameContext<'a, V> {
         let shading = options.shading.then(|| {
             options
                 .phong

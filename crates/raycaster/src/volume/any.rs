@@ -64,6 +64,13 @@ impl AnyVolume {
         })
     }
 
+    /// The same volume placed with sample (0, 0, 0) at world position
+    /// `origin` (a part of a larger volume keeps its world position).
+    pub fn with_origin(mut self, origin: glam::Vec3) -> Self {
+        self.grid.origin = origin;
+        self
+    }
+
     /// One array of samples in `order`.
     pub fn linear(grid: Grid, storage: Storage, order: AxisOrder) -> Result<Self> {
         let addressing = Linear::new(grid.dims, order).ok_or_else(|| {

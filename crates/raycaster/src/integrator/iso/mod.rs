@@ -27,7 +27,7 @@ pub use crossing::CellCubic;
 
 use glam::{IVec3, UVec3, Vec3, Vec4};
 
-use super::{FrameContext, Integrator, Occupancy, Span};
+use super::{Fragment, FrameContext, Integrator, Occupancy, Span};
 use crate::accel::{CellClass, CellMasks, SkipGrid};
 use crate::geometry::Aabb;
 use crate::volume::{Corners, Volume};
@@ -127,6 +127,21 @@ impl Integrator for IsoState {
 
     /// The TF colour at the iso value, lit by the frame's lights (Phong,
     /// shadow rays when asked) when shading is on; opaque.
+    /// The shaded colour at the hit and its depth (the ray parameter).
+    fn fragment<V: Volume>(&self, ctx: &FrameContext<'_, V>) -> Fragment {
+        match self.hit {
+            Some(hit) => Fragment {
+                rgba: self.resolve(ctx),
+                value: hit.t,
+                count: 1,
+            },
+            None => Fragment {
+                value: f32::INFINITY,
+                ..Fragment::default()
+            },
+        }
+    }
+
     fn resolve<V: Volume>(&self, ctx: &FrameContext<'_, V>) -> Vec4 {
         let Some(hit) = self.hit else {
             return Vec4::ZERO;

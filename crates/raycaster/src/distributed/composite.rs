@@ -1,0 +1,129 @@
+//! Compositing: the parts' [`PartialImage`]s merged into the frame, in the
+//! visibility order of their regions (sort-last compositing).
+//!
+//! Per pixel, front to back: DVR blends premultiplied colours with "over"
+//! (`C += (1 − A)·C_i`, `A += (1 − A)·A_i`); MIP and MinIP keep the
+//! extremum of the parts' extrema and only then look it up in the transfer
+//! function; avg adds the parts' sums and counts before dividing; iso keeps
+//! the nearest hit. The background is applied last, as SPEC §5 says
+//! (`rgb = C + (1 − A)·background`, clamped, rounded).
+//!
+//! **Early ray termination across parts.** Each rank stops its own rays at
+//! the ERT threshold, but cannot know that a part in front of it already
+//! made a pixel opaque. The compositor restores the single-process rule
+//! where it can: once the accumulated opacity reaches the threshold, later
+//! parts are not blended (exactly where a single process would have
+//! stopped, when the front part stopped the ray). Where the threshold is
+//! crossed inside a later part, that part integrated its samples from
+//! `A = 0` and stopped later than a single process would: the difference
+//! is below `1 − threshold` of the pixel.
+
+use glam::{Vec3, Vec4};
+
+use super::render::PartialImage;
+use crate::error::{Error, Result};
+use crate::integrator::{AvgState, Fragment, MinipState, MipState, RenderMode};
+use crate::render::film::to_bytes;
+use crate::transfer::TransferFunction;
+
+/// What the compositor needs of the frame's settings.
+#[derive(Debug, Clone)]
+pub struct Compositor {
+    /// The mode the parts were rendered in.
+    pub mode: RenderMode,
+    /// The transfer function (MIP and MinIP look the extremum up in it).
+    pub tf: TransferFunction,
+    /// The ERT threshold (`None`: ERT off).
+    pub ert: Option<f32>,
+    /// Divisor of avg (the sample type's maximum).
+    pub avg_norm: f32,
+    /// Background colour, 0..1.
+    pub background: Vec3,
+}
+
+impl Compositor {
+    /// Merges `fragment` (of a part behind those merged so far) into `acc`.
+    #[inline]
+    pub fn merge(&self, acc: &mut Fragment, f: &Fragment) {
+        match self.mode {
+            RenderMode::Dvr => {
+                if self.ert.is_none_or(|t| acc.rgba.w < t) {
+                    acc.rgba += (1.0 - acc.rgba.w) * f.rgba;
+                }
+            }
+            RenderMode::Mip | RenderMode::Minip => {
+                if f.count > 0 {
+                    acc.value = if acc.count == 0 {
+                        f.value
+                    } else if self.mode == RenderMode::Mip {
+                        acc.value.max(f.value)
+                    } else {
+                        acc.value.min(f.value)
+                    };
+                    acc.count += f.count;
+                }
+            }
+            RenderMode::Avg => {
+                acc.value += f.value;
+                acc.count += f.count;
+            }
+            RenderMode::Iso => {
+                if f.count > 0 && (acc.count == 0 || f.value < acc.value) {
+                    *acc = *f;
+                }
+            }
+            RenderMode::Metaballs => {}
+        }
+    }
+
+    /// The premultiplied pixel of a fully merged fragment.
+    pub fn resolve(&self, f: &Fragment) -> Vec4 {
+        match self.mode {
+            RenderMode::Dvr | RenderMode::Iso => f.rgba,
+            RenderMode::Mip if f.count > 0 => MipState::colour(&self.tf, f.value),
+            RenderMode::Minip if f.count > 0 => MinipState::colour(&self.tf, f.value),
+            RenderMode::Avg => AvgState::colour(f.value as f64, f.count as u64, self.avg_norm),
+            _ => Vec4::ZERO,
+        }
+    }
+
+    /// Composites `parts`, given front to back, into the RGB8 frame.
+    pub fn composite<'a>(
+        &self,
+        parts: impl IntoIterator<Item = &'a PartialImage> + Clone,
+    ) -> Result<(u32, u32, Vec<u8>)> {
+        let Some(first) = parts.clone().into_iter().next() else {
+            return Err(Error::option("ranks", "nothing to composite"));
+        };
+        let (width, height) = (first.width, first.height);
+        let mut acc = vec![Fragment::default(); width as usize * height as usize];
+        for part in parts {
+            if (part.width, part.height) != (width, height) {
+                return Err(Error::option(
+                    "partial image",
+                    format!(
+                        "{}x{} does not match {width}x{height}",
+                        part.width, part.height
+                    ),
+                ));
+            }
+            let r = part.rect;
+            let w = (r.x1 - r.x0) as usize;
+            for (row, j) in (r.y0..r.y1).enumerate() {
+                let line = &part.fragments[row * w..row * w + w];
+                let o = j as usize * width as usize + r.x0 as usize;
+                for (a, f) in acc[o..o + w].iter_mut().zip(line) {
+                    self.merge(a, f);
+                }
+            }
+        }
+        let rgb = acc
+            .iter()
+            .flat_map(|f| {
+                let c = self.resolve(f);
+                to_bytes(c.truncate() + (1.0 - c.w) * self.background)
+            })
+            .collect();
+        Ok((width, height, rgb))
+    }
+}

@@ -1,0 +1,192 @@
+//! Distributed rendering: sort-last ray casting of a volume split between
+//! processes (SPEC §8 "Distributed rendering"), the parts a transport such
+//! as MPI needs, with no transport in it.
+//!
+//! 1. **Partition** ([`partition`]): a k-d split of the voxel box into one
+//!    region per rank, balanced by the weight of coarse cells (occupied
+//!    macrocells for the frame's transfer function, or voxel count); a
+//!    half-open ownership rule gives every sample position exactly one
+//!    region.
+//! 2. **Partial reading** ([`read`]): a rank reads only its region plus a
+//!    ghost layer ([`ghost_layer`]) from the file, by seeks.
+//! 3. **Rendering a part** ([`render`]): the frame's rays, clipped to the
+//!    whole volume so the sample positions are the single-process ones,
+//!    integrated over the samples the region owns into per-pixel
+//!    [`Fragment`]s (premultiplied RGBA, extremum, sum, depth), no
+//!    background.
+//! 4. **Compositing** ([`composite`]): the parts' images merged in the
+//!    regions' visibility order ([`Partition::visibility_order`]), then the
+//!    background.
+//!
+//! [`render_in_process`] runs all four in one process, part after part: the
+//! reference the tests compare with a single-process render, and what a
+//! transport's driver does with the parts spread over ranks.
+
+pub mod composite;
+pub mod partition;
+pub mod read;
+pub mod render;
+
+pub use crate::integrator::Fragment;
+pub use composite::Compositor;
+pub use partition::{CellWeights, Partition, Region};
+pub use read::{PartFile, PartVolume, ReadPolicy, extract};
+pub use render::{PartRenderer, PartScene, PartialImage};
+
+use crate::camera::Camera;
+use crate::error::Result;
+use crate::integrator::{Integrator, IntegratorVisitor, Occupancy};
+use crate::render::RenderOptions;
+use crate::scene::Scene;
+use crate::transfer::{TfLut, TransferFunction};
+
+/// The ghost layer a frame with `options` needs around each region: 1
+/// voxel for trilinear sampling, 2 when central-difference gradients are
+/// taken (shading, gradient opacity).
+pub fn ghost_layer(options: &RenderOptions) -> u32 {
+    if options.shading || options.gradient_opacity.is_some() {
+        2
+    } else {
+        1
+    }
+}
+
+/// Reads `region` of `file` with a ghost layer of `ghost` voxels and makes
+/// its scene. The value range is the part's own until the caller sets the
+/// whole volume's ([`PartScene::value_range`]). Returns the bytes read.
+pub fn open_part(file: &PartFile, region: &Region, ghost: u32) -> Result<(PartScene, u64)> {
+    let whole = file.grid();
+    let (lo, hi) = region.data_box(whole.dims, ghost);
+    let part = file.read_box(lo, hi)?;
+    let scene = Scene::new(part.volume);
+    let value_range = scene.value_range();
+    Ok((
+        PartScene {
+            scene,
+            region: *region,
+            offset: part.offset,
+            whole,
+            value_range,
+        },
+        part.bytes_read,
+    ))
+}
+
+/// The cell weights that balance a partition by the macrocells of `scene`
+/// (the whole volume) that the frame's transfer function, iso value and
+/// clipping leave occupied.
+pub fn occupancy_weights(
+    scene: &Scene,
+    tf: &TransferFunction,
+    options: &RenderOptions,
+) -> CellWeights {
+    struct OccupancyOf;
+    impl IntegratorVisitor for OccupancyOf {
+        type Output = Occupancy;
+        fn visit<I: Integrator>(self) -> Occupancy {
+            I::OCCUPANCY
+        }
+    }
+    let grid = scene.grid();
+    let step = options.step_for(grid);
+    let lut = TfLut::new(tf, step);
+    let clip = options.clip.region(grid);
+    let skip =
+        options
+            .mode
+            .visit(OccupancyOf)
+            .skip_grid(scene, &lut, options.iso_value, clip.as_ref());
+    CellWeights::macrocells(grid.dims, scene.macrocells(), |i| skip.is_occupied_index(i))
+}
+
+/// The compositor for a frame with these settings on a volume of sample
+/// type `sample`.
+pub fn compositor(
+    tf: &TransferFunction,
+    options: &RenderOptions,
+    sample: crate::sample::SampleType,
+) -> Compositor {
+    Compositor {
+        mode: options.mode,
+        tf: tf.clone(),
+        ert: options.ert.then_some(options.ert_threshold),
+        avg_norm: sample.max_value(),
+        background: options.background,
+    }
+}
+
+/// A frame rendered by [`render_in_process`].
+#[derive(Debug, Clone)]
+pub struct InProcessFrame {
+    /// Width in pixels.
+    pub width: u32,
+    /// Height in pixels.
+    pub height: u32,
+    /// RGB8, row-major.
+    pub rgb: Vec<u8>,
+    /// Bytes each part read from the file.
+    pub bytes_read: Vec<u64>,
+    /// Samples each part took.
+    pub samples: Vec<u64>,
+    /// Each part's partial image.
+    pub parts: Vec<PartialImage>,
+}
+
+/// Splits `file` into `partition`'s regions, reads and renders each part
+/// in turn (as the ranks of a distributed run would, each on its own),
+/// and composites them in visibility order.
+pub fn render_in_process(
+    file: &PartFile,
+    partition: &Partition,
+    camera: &Camera,
+    tf: &TransferFunction,
+    options: &RenderOptions,
+    threads: usize,
+) -> Result<InProcessFrame> {
+    let ghost = ghost_layer(options);
+    let mut parts = Vec::new();
+    let mut bytes_read = Vec::new();
+    let mut range = (f32::INFINITY, f32::NEG_INFINITY);
+    for region in partition.regions() {
+        let (part, bytes) = open_part(file, region, ghost)?;
+        range = (
+            range.0.min(part.value_range.0),
+            range.1.max(part.value_range.1),
+        );
+        bytes_read.push(bytes);
+        parts.push(part);
+    }
+    let mut renderer = PartRenderer::new(threads)?;
+    let mut images = Vec::new();
+    for part in &mut parts {
+        part.value_range = range;
+        images.push(renderer.render(part, camera, tf, options)?);
+    }
+    let sample = parts[0].scene.volume().sample_type();
+    let order = visibility_order(partition, camera, &file.grid());
+    let (width, height, rgb) =
+        compositor(tf, options, sample).composite(order.iter().map(|&i| &images[i]))?;
+    Ok(InProcessFrame {
+        width,
+        height,
+        rgb,
+        bytes_read,
+        samples: images.iter().map(|i| i.samples).collect(),
+        parts: images,
+    })
+}
+
+/// The regions of `partition` front to back for `camera` over a volume on
+/// `grid`.
+pub fn visibility_order(
+    partition: &Partition,
+    camera: &Camera,
+    grid: &crate::volume::Grid,
+) -> Vec<usize> {
+    use crate::camera::Projection;
+    let view = match camera.projection {
+        Projection::Perspective => grid.world_to_voxel(camera.position),
+        Projection::Orthographic => (camera.target - camera.position) / grid.spacing,
+    };
+    partition.visibility_order(camera.projection, view)
+}
