@@ -275,3 +275,30 @@ fn a_decode_larger_than_the_memory_limit_is_refused() {
     assert!(open(&vol, LoadMode::Ram, Some(limit)).is_ok());
     assert!(open(&vol, LoadMode::Map, Some(1)).is_ok());
 }
+
+/// Found by `scripts/fuzz.sh`: a 496-byte DICOM file whose Series Instance
+/// UID is stored as FD with 6 bytes. The parser read a whole 8-byte value,
+/// lost its place, took the bytes after it for an element header and
+/// allocated its made-up length: 1.4 GB of RSS, a libFuzzer timeout under
+/// its instrumentation. The length walk now refuses a binary value that is
+/// not a whole number of its VR's values, before the parser runs.
+#[test]
+fn a_dicom_value_of_a_partial_binary_unit_is_refused_before_parsing() {
+    // Alone in a directory: a DICOM file opens the series around it.
+    let dir = TempDir::new("dicom_fd6");
+    let path = dir.path().join("fd6.dcm");
+    std::fs::copy(
+        Path::new(env!("CARGO_MANIFEST_DIR"))
+            .join("fuzz/regressions/dicom/timeout-0ff249e057425a51ee198a32a5149a9917f2d540"),
+        &path,
+    )
+    .unwrap();
+    let err = fmt::open_file(&path, &OpenOptions::default())
+        .map(|_| ())
+        .unwrap_err()
+        .to_string();
+    assert!(
+        err.contains("(0020,000E)") && err.contains("not a whole number of 8-byte values"),
+        "{err}"
+    );
+}

@@ -157,9 +157,11 @@ impl Walk {
                 continue;
             }
             self.check(tag, length)?;
+            let vr = vr.or_else(|| implicit_vr(tag));
+            self.check_unit(tag, vr, length)?;
             let sequence = match vr {
                 Some(vr) => vr == VR::SQ,
-                None => implicit_is_sequence(tag),
+                None => false,
             };
             if !sequence {
                 self.skip(length)?;
@@ -241,6 +243,31 @@ impl Walk {
         Ok(())
     }
 
+    /// Refuses a binary value whose length is not a whole number of its
+    /// VR's values (an FD of 6 bytes): the parser reads whole values, loses
+    /// its place in the file and takes the bytes after it for a header,
+    /// whose made-up length it then allocates (a 496-byte file found by
+    /// fuzzing made it touch 1.4 GB).
+    fn check_unit(&self, tag: Tag, vr: Option<VR>, length: u32) -> Step {
+        let unit = match vr {
+            Some(VR::US | VR::SS | VR::OW) => 2,
+            Some(VR::UL | VR::SL | VR::FL | VR::AT | VR::OF | VR::OL) => 4,
+            Some(VR::FD | VR::OD | VR::OV | VR::SV | VR::UV) => 8,
+            _ => 1,
+        };
+        if length != UNDEFINED && length % unit != 0 {
+            return Err(Stop::Refuse(FormatError::Invalid(format!(
+                "cannot read the DICOM file (element ({:04X},{:04X}) at byte {} is {} with \
+                 {length} bytes, not a whole number of {unit}-byte values: corrupt)",
+                tag.0,
+                tag.1,
+                self.pos,
+                vr.map_or("?", |v| v.to_string())
+            ))));
+        }
+        Ok(())
+    }
+
     fn read(&mut self, buf: &mut [u8]) -> Step {
         self.input.read_exact(buf).map_err(|_| Stop::End)?;
         self.pos += buf.len() as u64;
@@ -264,10 +291,10 @@ impl Walk {
     }
 }
 
-/// Whether the parser reads an implicit-VR element of defined length as a
-/// sequence: the data dictionary says so.
-fn implicit_is_sequence(tag: Tag) -> bool {
+/// The VR the parser gives an implicit-VR element: the data dictionary's,
+/// when it names exactly one.
+fn implicit_vr(tag: Tag) -> Option<VR> {
     StandardDataDictionary
         .by_tag(tag)
-        .is_some_and(|e| e.vr().exact() == Some(VR::SQ))
+        .and_then(|e| e.vr().exact())
 }
