@@ -255,7 +255,7 @@ impl Walk {
             Some(VR::FD | VR::OD | VR::OV | VR::SV | VR::UV) => 8,
             _ => 1,
         };
-        if length != UNDEFINED && length % unit != 0 {
+        if length != UNDEFINED && !length.is_multiple_of(unit) {
             return Err(Stop::Refuse(FormatError::Invalid(format!(
                 "cannot read the DICOM file (element ({:04X},{:04X}) at byte {} is {} with \
                  {length} bytes, not a whole number of {unit}-byte values: corrupt)",
