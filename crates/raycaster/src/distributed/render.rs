@@ -178,16 +178,7 @@ impl std::fmt::Debug for PartRenderer {
 impl PartRenderer {
     /// A renderer with `threads` workers (0 = one per core).
     pub fn new(threads: usize) -> Result<Self> {
-        let threads = crate::render::resolve_threads(threads);
-        let pool = rayon::ThreadPoolBuilder::new()
-            .num_threads(threads)
-            .thread_name(|i| format!("raycaster-part-{i}"))
-            .build()
-            .map_err(|e| Error::Threads {
-                count: threads,
-                role: "render",
-                source: std::io::Error::other(e),
-            })?;
+        let (pool, threads) = crate::render::render_pool(threads, "part")?;
         Ok(PartRenderer {
             pool,
             threads,

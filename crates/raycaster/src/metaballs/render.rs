@@ -90,16 +90,7 @@ impl MetaballRenderer {
         let (pool, threads) = match kind {
             RendererKind::Serial => (None, 1),
             RendererKind::Tiles | RendererKind::Object => {
-                let threads = crate::render::resolve_threads(threads);
-                let pool = rayon::ThreadPoolBuilder::new()
-                    .num_threads(threads)
-                    .thread_name(|i| format!("raycaster-metaballs-{i}"))
-                    .build()
-                    .map_err(|e| Error::Threads {
-                        count: threads,
-                        role: "render",
-                        source: std::io::Error::other(e),
-                    })?;
+                let (pool, threads) = crate::render::render_pool(threads, "metaballs")?;
                 (Some(pool), threads)
             }
         };

@@ -104,6 +104,26 @@ pub(crate) fn resolve_threads(n: usize) -> usize {
     }
 }
 
+/// A rayon pool of `threads` render workers (0 = one per core) named
+/// `raycaster-{name}-i`, and its thread count: the one way renderers make
+/// their pools.
+pub(crate) fn render_pool(
+    threads: usize,
+    name: &'static str,
+) -> Result<(rayon::ThreadPool, usize)> {
+    let threads = resolve_threads(threads);
+    let pool = rayon::ThreadPoolBuilder::new()
+        .num_threads(threads)
+        .thread_name(move |i| format!("raycaster-{name}-{i}"))
+        .build()
+        .map_err(|e| crate::error::Error::Threads {
+            count: threads,
+            role: "render",
+            source: std::io::Error::other(e),
+        })?;
+    Ok((pool, threads))
+}
+
 /// When a frame in progress should stop: never, when a flag is raised, or
 /// when a generation counter moves on from the value the frame was started
 /// with. Cheap to copy and to check (one relaxed atomic load).

@@ -7,7 +7,7 @@ use super::TiledRenderer;
 use super::driver::{FrameJob, Schedule, render_tile};
 use super::film::Film;
 use crate::camera::PixelRect;
-use crate::error::{Error, Result};
+use crate::error::Result;
 use crate::integrator::Integrator;
 use crate::volume::Volume;
 
@@ -36,16 +36,7 @@ impl TiledRenderer {
     /// A renderer with `threads` workers (0 = one per core) and square tiles
     /// of `tile` pixels.
     pub fn new(threads: usize, tile: u32) -> Result<Self> {
-        let threads = super::resolve_threads(threads);
-        let pool = rayon::ThreadPoolBuilder::new()
-            .num_threads(threads)
-            .thread_name(|i| format!("raycaster-tile-{i}"))
-            .build()
-            .map_err(|e| Error::Threads {
-                count: threads,
-                role: "render",
-                source: std::io::Error::other(e),
-            })?;
+        let (pool, threads) = super::render_pool(threads, "tile")?;
         Ok(TiledRenderer::with_schedule(TilePool {
             pool,
             threads,

@@ -208,6 +208,37 @@ pub(crate) fn load_corners<S: Sample>(data: &[S], base: usize, stride: [usize; 3
     ]
 }
 
+/// Where each of the 24 [`Wings`] values lies: per axis the index into
+/// the coordinates `c − 1, c, c + 1, c + 2` (0..=3) of the cell's corner.
+/// `load_wings` spells the same order out: written as a `map` over this
+/// table, its hot loop ran about 8 % slower.
+const WING_ORDER: [[usize; 3]; 24] = [
+    [0, 1, 1],
+    [0, 1, 2],
+    [0, 2, 1],
+    [0, 2, 2],
+    [3, 1, 1],
+    [3, 1, 2],
+    [3, 2, 1],
+    [3, 2, 2],
+    [1, 0, 1],
+    [1, 0, 2],
+    [2, 0, 1],
+    [2, 0, 2],
+    [1, 3, 1],
+    [1, 3, 2],
+    [2, 3, 1],
+    [2, 3, 2],
+    [1, 1, 0],
+    [1, 2, 0],
+    [2, 1, 0],
+    [2, 2, 0],
+    [1, 1, 3],
+    [1, 2, 3],
+    [2, 1, 3],
+    [2, 2, 3],
+];
+
 /// Loads a cell's wings given the storage offsets of coordinates
 /// `c − 1, c, c + 1, c + 2` along each axis (index = xo + yo + zo).
 #[inline(always)]
@@ -266,38 +297,10 @@ pub fn clamped_wings<V: Volume + ?Sized>(volume: &V, cell: UVec3) -> Wings {
     let last = volume.grid().dims - UVec3::ONE;
     // Coordinate `c − 1 + i` along `axis`, clamped, for i in 0..=3.
     let at = |axis: usize, i: u32| (cell[axis] + i).saturating_sub(1).min(last[axis]);
-    let v = |a: u32, b: u32, c: u32| {
-        volume
-            .voxel(UVec3::new(at(0, a), at(1, b), at(2, c)))
-            .to_f32()
-    };
-    // The order of `load_wings`.
-    [
-        v(0, 1, 1),
-        v(0, 1, 2),
-        v(0, 2, 1),
-        v(0, 2, 2),
-        v(3, 1, 1),
-        v(3, 1, 2),
-        v(3, 2, 1),
-        v(3, 2, 2),
-        v(1, 0, 1),
-        v(1, 0, 2),
-        v(2, 0, 1),
-        v(2, 0, 2),
-        v(1, 3, 1),
-        v(1, 3, 2),
-        v(2, 3, 1),
-        v(2, 3, 2),
-        v(1, 1, 0),
-        v(1, 2, 0),
-        v(2, 1, 0),
-        v(2, 2, 0),
-        v(1, 1, 3),
-        v(1, 2, 3),
-        v(2, 1, 3),
-        v(2, 2, 3),
-    ]
+    WING_ORDER.map(|[a, b, c]| {
+        let v = UVec3::new(at(0, a as u32), at(1, b as u32), at(2, c as u32));
+        volume.voxel(v).to_f32()
+    })
 }
 
 /// True when the gradient stencil around cell `c` is inside a grid of `dims`.
