@@ -60,8 +60,11 @@ for t in "${TARGETS[@]}"; do
         mkdir -p "fuzz/regressions/$t"
         for a in $found; do
             min="fuzz/artifacts/$t/min-$a"
-            (cd fuzz && cargo +nightly fuzz tmin -O "$t" "artifacts/$t/$a" -- -runs=2000 \
-                -exact_artifact_path="artifacts/$t/min-$a") >/dev/null 2>&1 || cp "fuzz/artifacts/$t/$a" "$min"
+            # Bounded: minimising a timeout re-runs inputs that each take up
+            # to the 10 s limit, so -runs alone could take hours.
+            (cd fuzz && timeout 900 cargo +nightly fuzz tmin -O "$t" "artifacts/$t/$a" -- -runs=2000 \
+                -max_total_time=300 -exact_artifact_path="artifacts/$t/min-$a") >/dev/null 2>&1
+            [ -s "$min" ] || cp "fuzz/artifacts/$t/$a" "$min"
             cp "$min" "fuzz/regressions/$t/$a"
             mv "fuzz/artifacts/$t/$a" "fuzz/artifacts/$t/done-$a"
             echo "   FOUND $a -> fuzz/regressions/$t/$a (log: $LOGS/$t.log)"
