@@ -502,7 +502,13 @@ impl ViewerApp {
             && (response.clicked_by(PointerButton::Primary)
                 || response.dragged_by(PointerButton::Primary))
         {
-            self.slices.cursor = to_world(p);
+            // The cursor keeps its own through-plane coordinate: the image
+            // shown may still be the slice at the cursor's previous position
+            // while the new one is extracted, and a click must not move the
+            // cursor back to it.
+            let mut w = to_world(p);
+            w[axis.normal()] = cursor[axis.normal()];
+            self.slices.cursor = w;
         }
         if response.dragged_by(PointerButton::Secondary) {
             let d = response.drag_delta();
