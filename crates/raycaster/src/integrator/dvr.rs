@@ -8,7 +8,7 @@ use super::{Fragment, FrameContext, GradientOpacity, Integrator, Occupancy, RayS
 use crate::accel::RunKind;
 use crate::simd::{self, Isa, Kernel, LANES};
 use crate::volume::{
-    CornerGradients, Volume, clamped_wings, corner_gradients, interpolate_gradient,
+    CornerGradients, Volume, corner_gradients, interpolate_gradient,
 };
 
 /// Corner gradients of a cell where every difference is zero.
@@ -234,9 +234,7 @@ impl<V: Volume, const GO: bool> Kernel for March<'_, '_, V, GO> {
                         // region) give a zero gradient, which leaves the
                         // colour unshaded: no arithmetic per sample.
                         // Cells at the grid's faces read clamped wings.
-                        let w = volume
-                            .wings(cell)
-                            .unwrap_or_else(|| clamped_wings(volume, cell));
+                        let w = volume.wings(cell);
                         let g = corner_gradients(&batch.corners(l), &w);
                         grads = (g, g.iter().all(|d| *d == Vec4::ZERO));
                     }

@@ -85,6 +85,10 @@ pub trait Addressing: Send + Sync + std::fmt::Debug + 'static {
     /// called when the stencil is inside the grid.
     fn stencil_offsets(&self, c: UVec3) -> [[usize; 4]; 3];
 
+    /// Storage offset of coordinate `coord` (inside the grid) along `axis`:
+    /// [`Addressing::index`] is the sum of the three axes' offsets.
+    fn axis_offset(&self, axis: usize, coord: u32) -> usize;
+
     /// The axis (0 = x or 2 = z) along which rows are stored in runs.
     fn row_axis(&self) -> usize;
 
@@ -147,6 +151,11 @@ impl Addressing for Linear {
     #[inline(always)]
     fn index(&self, v: UVec3) -> usize {
         v.x as usize * self.step[0] + v.y as usize * self.step[1] + v.z as usize * self.step[2]
+    }
+
+    #[inline(always)]
+    fn axis_offset(&self, axis: usize, coord: u32) -> usize {
+        coord as usize * self.step[axis]
     }
 
     #[inline(always)]
@@ -348,6 +357,11 @@ impl Addressing for Bricked {
     #[inline(always)]
     fn index(&self, v: UVec3) -> usize {
         self.offset[0][v.x as usize] + self.offset[1][v.y as usize] + self.offset[2][v.z as usize]
+    }
+
+    #[inline(always)]
+    fn axis_offset(&self, axis: usize, coord: u32) -> usize {
+        self.offset[axis][coord as usize]
     }
 
     #[inline(always)]

@@ -50,6 +50,20 @@ impl<'a, S: Sample, A: Addressing> GridVolume<'a, S, A> {
     pub fn addressing(&self) -> &'a A {
         self.addr
     }
+
+    /// [`Addressing::stencil_offsets`] for a cell at the grid's faces, with
+    /// each coordinate `c − 1 ..= c + 2` clamped into the grid (see
+    /// [`Volume::wings`]). Out of line: only face cells come here.
+    #[inline(never)]
+    fn clamped_stencil_offsets(&self, c: UVec3) -> [[usize; 4]; 3] {
+        let last = self.grid.dims - UVec3::ONE;
+        std::array::from_fn(|a| {
+            std::array::from_fn(|i| {
+                let coord = (c[a] + i as u32).saturating_sub(1).min(last[a]);
+                self.addr.axis_offset(a, coord)
+            })
+        })
+    }
 }
 
 impl<S: Sample, A: Addressing> Volume for GridVolume<'_, S, A> {
@@ -102,12 +116,13 @@ impl<S: Sample, A: Addressing> Volume for GridVolume<'_, S, A> {
     }
 
     #[inline(always)]
-    fn wings(&self, cell: UVec3) -> Option<Wings> {
-        if !super::stencil_inside(cell, self.grid.dims) {
-            return None;
-        }
-        let [xo, yo, zo] = self.addr.stencil_offsets(cell);
-        Some(load_wings(self.data, xo, yo, zo))
+    fn wings(&self, cell: UVec3) -> Wings {
+        let [xo, yo, zo] = if super::stencil_inside(cell, self.grid.dims) {
+            self.addr.stencil_offsets(cell)
+        } else {
+            self.clamped_stencil_offsets(cell)
+        };
+        load_wings(self.data, xo, yo, zo)
     }
 
     fn value_range(&self, lo: UVec3, hi: UVec3) -> (S, S) {

@@ -60,8 +60,11 @@ pub trait Volume: Send + Sync {
     fn prefetch(&self, _p: Vec3) {}
 
     /// The 24 voxel values one step outside cell `cell` along each axis, for
-    /// the gradient (see [`Wings`]); `None` when they would leave the grid.
-    fn wings(&self, cell: UVec3) -> Option<Wings>;
+    /// the gradient (see [`Wings`]). At the grid's faces a coordinate that
+    /// would leave the grid is clamped into it: a difference that would
+    /// reach past a face repeats the face voxel, so the gradient there is
+    /// `(v[1] − v[0]) / (2·spacing)` (SPEC §8).
+    fn wings(&self, cell: UVec3) -> Wings;
 
     /// The trilinearly interpolated value at voxel-space position `p`.
     #[inline(always)]
@@ -86,10 +89,7 @@ pub trait Volume: Send + Sync {
     #[inline(always)]
     fn gradient(&self, p: Vec3) -> Vec3 {
         let c = self.locate(p);
-        let w = match self.wings(c.cell) {
-            Some(w) => w,
-            None => clamped_wings(self, c.cell),
-        };
+        let w = self.wings(c.cell);
         stencil_gradient(&self.corners(c.cell), &w, c.frac, 0.5 / self.grid().spacing)
     }
 }
@@ -208,37 +208,6 @@ pub(crate) fn load_corners<S: Sample>(data: &[S], base: usize, stride: [usize; 3
     ]
 }
 
-/// Where each of the 24 [`Wings`] values lies: per axis the index into
-/// the coordinates `c − 1, c, c + 1, c + 2` (0..=3) of the cell's corner.
-/// `load_wings` spells the same order out: written as a `map` over this
-/// table, its hot loop ran about 8 % slower.
-const WING_ORDER: [[usize; 3]; 24] = [
-    [0, 1, 1],
-    [0, 1, 2],
-    [0, 2, 1],
-    [0, 2, 2],
-    [3, 1, 1],
-    [3, 1, 2],
-    [3, 2, 1],
-    [3, 2, 2],
-    [1, 0, 1],
-    [1, 0, 2],
-    [2, 0, 1],
-    [2, 0, 2],
-    [1, 3, 1],
-    [1, 3, 2],
-    [2, 3, 1],
-    [2, 3, 2],
-    [1, 1, 0],
-    [1, 2, 0],
-    [2, 1, 0],
-    [2, 2, 0],
-    [1, 1, 3],
-    [1, 2, 3],
-    [2, 1, 3],
-    [2, 2, 3],
-];
-
 /// Loads a cell's wings given the storage offsets of coordinates
 /// `c − 1, c, c + 1, c + 2` along each axis (index = xo + yo + zo).
 #[inline(always)]
@@ -286,21 +255,6 @@ pub(crate) fn load_wings<S: Sample>(
         v(2, 1, 3),
         v(2, 2, 3),
     ]
-}
-
-/// The wings of cell `cell` (see [`Wings`]) with every coordinate clamped
-/// into the grid, for cells at its faces where [`Volume::wings`] gives
-/// `None`: a difference that would reach past a face repeats the face voxel,
-/// so the gradient there is `(v[1] − v[0]) / (2·spacing)` (SPEC §8). Reads
-/// voxel by voxel: only the cells at the faces take this path.
-pub fn clamped_wings<V: Volume + ?Sized>(volume: &V, cell: UVec3) -> Wings {
-    let last = volume.grid().dims - UVec3::ONE;
-    // Coordinate `c − 1 + i` along `axis`, clamped, for i in 0..=3.
-    let at = |axis: usize, i: u32| (cell[axis] + i).saturating_sub(1).min(last[axis]);
-    WING_ORDER.map(|[a, b, c]| {
-        let v = UVec3::new(at(0, a as u32), at(1, b as u32), at(2, c as u32));
-        volume.voxel(v).to_f32()
-    })
 }
 
 /// True when the gradient stencil around cell `c` is inside a grid of `dims`.
