@@ -1354,3 +1354,93 @@ fn crop_box_planes_gradient_opacity_and_jitter_reach_the_renderer() {
     assert!(!opts(&h).jitter);
     assert!(h.query_all_by_label("MinIP").count() > 0);
 }
+
+/// The Metaballs mode: its controls make the balls the library makes from
+/// the volume, the frame is the library's `MetaballRenderer` image of them,
+/// and a change rebuilds the balls only when it must.
+#[test]
+fn metaballs_mode_renders_the_librarys_balls_and_rebuilds_only_what_it_must() {
+    use raycaster::metaballs::{Balls, Extraction, Kernel, MetaballOptions, MetaballRenderer};
+
+    let dir = TempDir::new("metaballs");
+    let (mut h, _) = open_file(&dir);
+    assert_eq!(h.query_all_by_label("Stride").count(), 0);
+    h.get_by_label("Metaballs").click();
+    h.step();
+    settle(&mut h);
+    assert_eq!(app(&h).settings().mode, RenderMode::Metaballs);
+
+    // The frame on screen against the library, from the request's
+    // parameters (full quality, after refinement).
+    let check = |h: &H| {
+        let a = app(h);
+        let f = a.last_frame().expect("a frame");
+        let r = a.last_request().expect("a request");
+        assert!(frame_is_current(a));
+        assert_eq!(f.level, Level::FULL);
+        let p = r.metaballs;
+        let balls = Balls::from_volume(
+            r.scene.volume(),
+            &Extraction {
+                threshold: p.threshold,
+                stride: p.stride,
+                radius: Some(p.radius),
+                max_balls: None,
+            },
+        )
+        .unwrap();
+        let info = f.metaballs.expect("a metaball frame");
+        assert_eq!(info.balls, balls.len());
+        assert!(info.balls > 0);
+        let options = MetaballOptions {
+            kernel: p.kernel,
+            field_threshold: p.field_threshold,
+            shading: r.options.shading,
+            phong: None,
+            lights: r.options.lights.clone(),
+            background: r.options.background,
+        };
+        let (want, _) = MetaballRenderer::new(RendererKind::Serial, 1)
+            .unwrap()
+            .render(&balls, &r.camera, Some(&r.tf), &options)
+            .unwrap();
+        assert_eq!(
+            f.frame.rgb, want.rgb,
+            "the viewer's frame is not the library's"
+        );
+        (info, f.frame.rgb.clone(), p)
+    };
+    let (first, image, p0) = check(&h);
+    assert_eq!(p0.stride, 2);
+    h.get_by_label_contains(&format!("{} balls", first.balls));
+
+    // The kernel changes the image, not the balls.
+    h.get_by_label("murakami").click();
+    h.step();
+    settle(&mut h);
+    let (info, murakami, p) = check(&h);
+    assert_eq!(p.kernel, Kernel::Murakami);
+    assert_eq!(info.builds, first.builds, "a kernel change made new balls");
+    assert_ne!(murakami, image);
+
+    // The stride makes new balls (fewer).
+    set_slider(&h, "Stride", 3.0);
+    h.step();
+    settle(&mut h);
+    let (info, _, p) = check(&h);
+    assert_eq!(p.stride, 3);
+    assert!(info.builds > first.builds);
+    assert!(
+        info.balls < first.balls,
+        "{} !< {}",
+        info.balls,
+        first.balls
+    );
+
+    // Back to DVR: volume frames again.
+    h.get_by_label("DVR").click();
+    h.step();
+    settle(&mut h);
+    assert!(app(&h).last_frame().unwrap().metaballs.is_none());
+    assert!(frame_is_current(app(&h)));
+}

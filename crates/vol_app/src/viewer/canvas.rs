@@ -181,6 +181,9 @@ impl ViewerApp {
             },
             level: Level::FULL,
             preview: false,
+            metaballs: s
+                .metaballs
+                .params(volume.scene.grid(), volume.scene.value_range()),
         })
     }
 
@@ -195,16 +198,22 @@ impl ViewerApp {
                     (false, true) => format!("preview {}", f.level.label()),
                     (false, false) => format!("refining {}", f.level.label()),
                 };
+                let work = match &f.metaballs {
+                    Some(b) => format!("{} balls", si(b.balls as f64)),
+                    None => format!(
+                        "{} samples · step {}",
+                        si(st.samples as f64),
+                        raycaster::units::value(f.step)
+                    ),
+                };
                 ui.monospace(format!(
-                    "{stage} · {:.1} ms · {} samples · {} rays · {} ×{} · {}×{} · step {}",
+                    "{stage} · {:.1} ms · {work} · {} rays · {} ×{} · {}×{}",
                     st.time.as_secs_f64() * 1e3,
-                    si(st.samples as f64),
                     si(st.rays as f64),
                     f.renderer,
                     f.threads,
                     f.frame.width,
                     f.frame.height,
-                    raycaster::units::value(f.step),
                 ));
             } else {
                 ui.monospace("no frame yet");

@@ -159,6 +159,11 @@ impl ViewerApp {
         let view = self
             .wanted_view([e.size, e.size])
             .ok_or("no volume to export")?;
+        if view.options.mode == raycaster::integrator::RenderMode::Metaballs {
+            return Err(
+                "the turntable export renders volumes: choose a mode other than Metaballs".into(),
+            );
+        }
         let camera = self.camera.camera(e.size, e.size);
         let (frames, axis) = (e.frames.max(1), e.axis);
         let mut renderer = view

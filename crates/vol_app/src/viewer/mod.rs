@@ -10,6 +10,7 @@
 //! | [`camera_control`] | orbit / pan / zoom math |
 //! | [`loading`] | opening volumes on a background thread, with progress |
 //! | [`render_link`] | the renderer on its own thread, newest request wins |
+//! | [`metaball_link`] | the Metaballs mode: balls from the volume and their frames on a thread of their own |
 //! | [`progressive`] | previews within a time budget while the view changes, refinement ¼ → ½ → full when still |
 //! | [`timeline`] | a sequence's player: play/pause, loop, speed, step ±1 (N/M), scrub |
 //! | [`dialogs`] | native file dialogs on a background thread |
@@ -25,6 +26,7 @@ mod canvas;
 pub mod dialogs;
 pub mod export;
 pub mod loading;
+pub mod metaball_link;
 mod panels;
 pub mod progressive;
 pub mod render_link;

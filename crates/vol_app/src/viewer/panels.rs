@@ -3,6 +3,7 @@
 
 use egui::{CollapsingHeader, Ui};
 use raycaster::integrator::{IsoNormals, RenderMode};
+use raycaster::metaballs::Kernel;
 use raycaster::render::RendererKind;
 use raycaster::storage::StorageKind;
 use raycaster::transfer::PRESET_NAMES;
@@ -12,8 +13,9 @@ use super::app::ViewerApp;
 use super::dialogs::Purpose;
 use super::loading::{GradientHistogram, Source, VolumeInfo};
 use super::state::{
-    ClipSettings, LightAngles, MAX_LIGHTS, MAX_VIEWER_PLANES, MODES, PlaneSetting,
-    ResolutionChoice, STEP_FACTOR_RANGE, Settings, max_threads, mode_label,
+    BALL_RADIUS_SCALE_RANGE, BALL_STRIDE_RANGE, ClipSettings, FIELD_THRESHOLD_RANGE, LightAngles,
+    MAX_LIGHTS, MAX_VIEWER_PLANES, MODES, PlaneSetting, ResolutionChoice, STEP_FACTOR_RANGE,
+    Settings, max_threads, mode_label,
 };
 
 impl ViewerApp {
@@ -227,7 +229,8 @@ impl ViewerApp {
 
     fn render_section(&mut self, ui: &mut Ui) {
         let s = &mut self.settings;
-        ui.horizontal(|ui| {
+        // Wrapped: six modes in one row would widen the panel.
+        ui.horizontal_wrapped(|ui| {
             ui.label("Mode:");
             for m in MODES {
                 ui.radio_value(&mut s.mode, m, mode_label(m));
@@ -240,7 +243,12 @@ impl ViewerApp {
                 .map_or((0.0, 255.0), |v| v.info.value_range);
             let iso = egui::Slider::new(&mut s.iso_value, lo..=hi.max(lo + 1e-3)).text("Iso value");
             self.controls_moving |= ui.add(iso).dragged();
-            self.controls_moving |= lights_editor(ui, s);
+            self.controls_moving |= lights_editor(ui, s, true);
+        }
+        if s.mode == RenderMode::Metaballs {
+            let balls = self.shown.as_ref().and_then(|f| f.frame.metaballs);
+            self.controls_moving |= metaballs_editor(ui, s, balls);
+            self.controls_moving |= lights_editor(ui, s, false);
         }
         ui.checkbox(&mut s.shading, "Shading (Phong)");
         ui.horizontal(|ui| {
@@ -323,11 +331,67 @@ impl ViewerApp {
     }
 }
 
-/// Iso mode's shadows and directional lights (none: the headlight). Returns
-/// true while a light's slider is dragged.
-fn lights_editor(ui: &mut Ui, s: &mut Settings) -> bool {
-    ui.checkbox(&mut s.shadows, "Shadows")
-        .on_hover_text("Cast a shadow ray towards each light from every surface hit");
+/// The Metaballs mode's controls and the balls of the frame on screen.
+/// Returns true while a slider is dragged.
+fn metaballs_editor(
+    ui: &mut Ui,
+    s: &mut Settings,
+    shown: Option<super::metaball_link::MetaballInfo>,
+) -> bool {
+    let m = &mut s.metaballs;
+    let mut moving = false;
+    moving |= ui
+        .add(egui::Slider::new(&mut m.threshold, 0.0..=1.0).text("Ball threshold"))
+        .on_hover_text(
+            "A voxel gives a ball when its value is above this fraction of the volume's \
+             value range (--ball-threshold)",
+        )
+        .dragged();
+    moving |= ui
+        .add(egui::Slider::new(&mut m.stride, BALL_STRIDE_RANGE).text("Stride"))
+        .on_hover_text("Every N-th voxel along each axis (--ball-stride)")
+        .dragged();
+    moving |= ui
+        .add(
+            egui::Slider::new(&mut m.radius_scale, BALL_RADIUS_SCALE_RANGE)
+                .logarithmic(true)
+                .text("Radius ×"),
+        )
+        .on_hover_text(
+            "Ball radius as a multiple of 1.5 × stride × the largest spacing (--ball-radius)",
+        )
+        .dragged();
+    moving |= ui
+        .add(
+            egui::Slider::new(&mut m.field_threshold, FIELD_THRESHOLD_RANGE)
+                .text("Field threshold"),
+        )
+        .on_hover_text("The surface is where the summed kernels equal this (--field-threshold)")
+        .dragged();
+    ui.horizontal(|ui| {
+        ui.label("Kernel:");
+        for k in [Kernel::Wyvill, Kernel::Murakami] {
+            ui.radio_value(&mut m.kernel, k, k.name());
+        }
+    });
+    match shown {
+        Some(b) if b.build_ms > 0.0 => {
+            ui.label(format!("{} balls (made in {:.0} ms)", b.balls, b.build_ms))
+        }
+        Some(b) => ui.label(format!("{} balls", b.balls)),
+        None => ui.weak("balls: not made yet"),
+    };
+    moving
+}
+
+/// The directional lights (none: the headlight) of the iso and Metaballs
+/// modes, and iso mode's shadows (`with_shadows`). Returns true while a
+/// light's slider is dragged.
+fn lights_editor(ui: &mut Ui, s: &mut Settings, with_shadows: bool) -> bool {
+    if with_shadows {
+        ui.checkbox(&mut s.shadows, "Shadows")
+            .on_hover_text("Cast a shadow ray towards each light from every surface hit");
+    }
     let mut analytic = s.iso_normals == IsoNormals::Analytic;
     if ui
         .checkbox(&mut analytic, "Faceted normals")

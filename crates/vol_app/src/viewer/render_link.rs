@@ -25,6 +25,7 @@ use std::sync::Arc;
 use raycaster::prelude::*;
 use raycaster::render::{FrameRequest, FrontEvent, FrontOptions, RendererFront, RendererKind};
 
+use super::metaball_link::{MetaballInfo, MetaballParams, MetaballWorker};
 use super::progressive::Level;
 
 /// Everything one frame depends on.
@@ -47,6 +48,8 @@ pub struct RenderRequest {
     /// A preview: the first frame of a changed view, picked to be fast (let
     /// finish rather than cancelled by the next request).
     pub preview: bool,
+    /// The Metaballs mode's parameters (used in that mode only).
+    pub metaballs: MetaballParams,
 }
 
 impl RenderRequest {
@@ -67,6 +70,7 @@ impl PartialEq for RenderRequest {
             && self.threads == other.threads
             && self.level == other.level
             && self.preview == other.preview
+            && self.metaballs == other.metaballs
     }
 }
 
@@ -90,6 +94,8 @@ pub struct RenderedFrame {
     pub renderer: &'static str,
     /// Its threads.
     pub threads: usize,
+    /// The balls of a Metaballs frame.
+    pub metaballs: Option<MetaballInfo>,
 }
 
 /// A frame that could not be rendered.
@@ -123,6 +129,8 @@ struct InFlight {
 pub struct RenderLink {
     wake: Arc<dyn Fn() + Send + Sync>,
     front: Option<Front>,
+    /// The Metaballs mode's thread, started by its first request.
+    balls: Option<MetaballWorker>,
     in_flight: Option<InFlight>,
     waiting: Option<(u64, RenderRequest)>,
     /// A request that could not even be started, reported at the next poll.
@@ -147,6 +155,7 @@ impl RenderLink {
         RenderLink {
             wake: Arc::new(wake),
             front: None,
+            balls: None,
             in_flight: None,
             waiting: None,
             failed: None,
@@ -160,11 +169,17 @@ impl RenderLink {
     pub fn request(&mut self, request: RenderRequest) -> u64 {
         self.next_id += 1;
         let id = self.next_id;
-        let same_setup = self.front.as_ref().is_some_and(|f| {
-            Arc::ptr_eq(&f.scene, &request.scene)
-                && f.renderer == request.renderer
-                && f.threads == request.threads
-        });
+        let same_setup = if is_metaballs(&request) {
+            self.in_flight
+                .as_ref()
+                .is_some_and(|i| is_metaballs(&i.request))
+        } else {
+            self.front.as_ref().is_some_and(|f| {
+                Arc::ptr_eq(&f.scene, &request.scene)
+                    && f.renderer == request.renderer
+                    && f.threads == request.threads
+            })
+        };
         if same_setup && self.in_flight.as_ref().is_some_and(|i| i.request.preview) {
             self.waiting = Some((id, request));
         } else {
@@ -202,6 +217,35 @@ impl RenderLink {
                 self.send(id, request);
             }
         }
+        while let Some(balls) = &self.balls {
+            let reply = match balls.replies().try_recv() {
+                Ok(r) => r,
+                Err(crossbeam_channel::TryRecvError::Empty) => break,
+                Err(crossbeam_channel::TryRecvError::Disconnected) => {
+                    self.balls = None;
+                    if let Some(f) = self.in_flight.take_if(|f| is_metaballs(&f.request)) {
+                        newest = Some(Err(RenderFailure {
+                            id: f.id,
+                            message: "the metaball thread stopped".into(),
+                        }));
+                    }
+                    break;
+                }
+            };
+            let id = match &reply {
+                Ok(f) => f.id,
+                Err(e) => e.id,
+            };
+            // Replies to superseded requests answer nothing.
+            if self.in_flight.as_ref().is_none_or(|f| f.id != id) {
+                continue;
+            }
+            self.in_flight = None;
+            newest = Some(reply);
+            if let Some((id, request)) = self.waiting.take() {
+                self.send(id, request);
+            }
+        }
         newest
     }
 
@@ -223,6 +267,7 @@ impl RenderLink {
                         step: r.step(),
                         renderer: front.renderer_name(),
                         threads: front.renderer_threads(),
+                        metaballs: None,
                     })
                 })
             }
@@ -242,6 +287,20 @@ impl RenderLink {
     /// Sends `request` to the front, (re)starting the front when the volume's
     /// renderer or thread count changed.
     fn send(&mut self, id: u64, request: RenderRequest) {
+        if is_metaballs(&request) {
+            if let Err(message) = self.send_metaballs(id, request.clone()) {
+                self.in_flight = None;
+                self.failed = Some(RenderFailure { id, message });
+                return;
+            }
+            self.in_flight = Some(InFlight {
+                id,
+                // Matches no event of the volume renderer's front.
+                front_id: u64::MAX,
+                request,
+            });
+            return;
+        }
         if let Err(message) = self.prepare_front(&request) {
             self.in_flight = None;
             // Reported at the next poll, like any failed frame.
@@ -260,6 +319,17 @@ impl RenderLink {
             front_id,
             request,
         });
+    }
+
+    /// Queues a Metaballs request on its thread, starting the thread first.
+    fn send_metaballs(&mut self, id: u64, request: RenderRequest) -> Result<(), String> {
+        if self.balls.is_none() {
+            self.balls = Some(MetaballWorker::spawn(self.wake.clone())?);
+        }
+        match &self.balls {
+            Some(b) => b.send(id, request),
+            None => Err("the metaball thread did not start".into()),
+        }
     }
 
     /// Makes the running front match `request`'s volume, renderer and
@@ -301,6 +371,11 @@ impl RenderLink {
         Ok(())
     }
 }
+/// Whether `request` is for the Metaballs mode's thread.
+fn is_metaballs(request: &RenderRequest) -> bool {
+    request.options.mode == RenderMode::Metaballs
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -327,6 +402,7 @@ mod tests {
             threads: 2,
             level: Level::FULL,
             preview: false,
+            metaballs: MetaballParams::default(),
         }
     }
 

@@ -23,15 +23,16 @@ pub const DEFAULT_STEP_FACTOR: f32 = 0.5;
 /// The range of the step slider, in units of the smallest voxel spacing.
 pub const STEP_FACTOR_RANGE: std::ops::RangeInclusive<f32> = 0.05..=4.0;
 
-/// The rendering modes, in menu order. Metaballs are not offered: they are
-/// rendered from balls by `vol_app render --mode metaballs`, not by the
-/// viewer's volume renderer (issue 14, item 2).
-pub const MODES: [RenderMode; 5] = [
+/// The rendering modes, in menu order. Metaballs are rendered from balls
+/// made of the volume, on a thread of their own
+/// ([`metaball_link`](super::metaball_link)).
+pub const MODES: [RenderMode; 6] = [
     RenderMode::Dvr,
     RenderMode::Mip,
     RenderMode::Minip,
     RenderMode::Avg,
     RenderMode::Iso,
+    RenderMode::Metaballs,
 ];
 
 /// A mode's label in the UI.
@@ -212,6 +213,84 @@ impl ClipSettings {
     }
 }
 
+/// The Metaballs mode's settings, relative to the volume on screen (so they
+/// carry over from one volume to the next).
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+#[serde(default)]
+pub struct MetaballSettings {
+    /// A voxel gives a ball when its value exceeds this fraction of the way
+    /// up the volume's value range (the seed's 0.3).
+    pub threshold: f32,
+    /// Every `stride`-th voxel per axis.
+    pub stride: u32,
+    /// Ball radius as a multiple of the default (1.5 × stride × the largest
+    /// spacing, so that neighbours overlap).
+    pub radius_scale: f32,
+    /// The kernel.
+    pub kernel: raycaster::metaballs::Kernel,
+    /// The surface is where the summed field equals this.
+    pub field_threshold: f32,
+}
+
+impl Default for MetaballSettings {
+    fn default() -> Self {
+        MetaballSettings {
+            threshold: 0.3,
+            stride: 2,
+            radius_scale: 1.0,
+            kernel: raycaster::metaballs::Kernel::Wyvill,
+            field_threshold: 0.5,
+        }
+    }
+}
+
+/// The ranges of the Metaballs sliders.
+pub const BALL_STRIDE_RANGE: std::ops::RangeInclusive<u32> = 1..=16;
+/// See [`BALL_STRIDE_RANGE`].
+pub const BALL_RADIUS_SCALE_RANGE: std::ops::RangeInclusive<f32> = 0.25..=4.0;
+/// See [`BALL_STRIDE_RANGE`].
+pub const FIELD_THRESHOLD_RANGE: std::ops::RangeInclusive<f32> = 0.05..=0.95;
+
+impl MetaballSettings {
+    /// The parameters for a volume on `grid` whose values span `range`.
+    pub fn params(&self, grid: &Grid, range: (f32, f32)) -> super::metaball_link::MetaballParams {
+        let (lo, hi) = range;
+        super::metaball_link::MetaballParams {
+            threshold: lo + self.threshold * (hi - lo),
+            stride: self.stride,
+            radius: self.radius_scale
+                * raycaster::metaballs::Extraction::default_radius(grid.spacing, self.stride),
+            kernel: self.kernel,
+            field_threshold: self.field_threshold,
+            max_balls: super::metaball_link::MAX_BALLS,
+        }
+    }
+
+    fn repaired(self) -> Self {
+        let d = MetaballSettings::default();
+        let fix = |v: f32, r: std::ops::RangeInclusive<f32>, default: f32| {
+            if v.is_finite() {
+                v.clamp(*r.start(), *r.end())
+            } else {
+                default
+            }
+        };
+        MetaballSettings {
+            threshold: fix(self.threshold, 0.0..=1.0, d.threshold),
+            stride: self
+                .stride
+                .clamp(*BALL_STRIDE_RANGE.start(), *BALL_STRIDE_RANGE.end()),
+            radius_scale: fix(self.radius_scale, BALL_RADIUS_SCALE_RANGE, d.radius_scale),
+            kernel: self.kernel,
+            field_threshold: fix(
+                self.field_threshold,
+                FIELD_THRESHOLD_RANGE,
+                d.field_threshold,
+            ),
+        }
+    }
+}
+
 /// The size of the rendered image.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize, Default)]
 #[serde(rename_all = "lowercase")]
@@ -273,6 +352,8 @@ pub struct Settings {
     pub play_fps: f32,
     /// Crop box, clip planes, gradient opacity, jitter.
     pub clip: ClipSettings,
+    /// The Metaballs mode.
+    pub metaballs: MetaballSettings,
 }
 
 impl Default for Settings {
@@ -301,6 +382,7 @@ impl Default for Settings {
             play_loop: true,
             play_fps: 10.0,
             clip: ClipSettings::default(),
+            metaballs: MetaballSettings::default(),
         }
     }
 }
@@ -377,6 +459,7 @@ impl Settings {
             defaults.play_fps
         };
         self.clip = self.clip.repaired();
+        self.metaballs = self.metaballs.repaired();
         if self.last_dir.as_ref().is_some_and(|d| !d.is_dir()) {
             self.last_dir = None;
         }
