@@ -7,9 +7,7 @@ use super::batch::SampleBatch;
 use super::{Fragment, FrameContext, GradientOpacity, Integrator, Occupancy, RaySegment, Span};
 use crate::accel::RunKind;
 use crate::simd::{self, Isa, Kernel, LANES};
-use crate::volume::{
-    CornerGradients, Volume, corner_gradients, interpolate_gradient,
-};
+use crate::volume::{CornerGradients, Volume, corner_gradients, interpolate_gradient};
 
 /// Corner gradients of a cell where every difference is zero.
 const ZERO_GRADIENTS: CornerGradients = [Vec4::ZERO; 8];
