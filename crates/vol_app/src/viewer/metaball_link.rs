@@ -168,8 +168,13 @@ impl State {
                 radius: Some(p.radius),
                 max_balls: Some(p.max_balls),
             };
-            let balls =
-                Balls::from_volume(r.scene.volume(), &ex).map_err(|e| fail(e.to_string()))?;
+            let balls = Balls::from_volume(r.scene.volume(), &ex).map_err(|e| match e {
+                // The library's message names the command line's options.
+                raycaster::Error::TooManyBalls { cap, .. } => fail(format!(
+                    "more than {cap} balls: raise the ball threshold or the stride"
+                )),
+                e => fail(e.to_string()),
+            })?;
             build_ms = start.elapsed().as_secs_f64() * 1e3;
             self.builds += 1;
             self.balls = Some((key, balls));
@@ -215,5 +220,75 @@ impl State {
                 builds: self.builds,
             }),
         })
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use glam::{UVec3, Vec3};
+    use raycaster::prelude::*;
+
+    use crate::viewer::progressive::Level;
+
+    fn request(params: MetaballParams) -> RenderRequest {
+        let grid = Grid::new(UVec3::splat(12), Vec3::ONE);
+        let volume = AnyVolume::from_fn(grid, |v| {
+            if (v.as_vec3() - Vec3::splat(5.5)).length() < 4.0 {
+                200u8
+            } else {
+                0
+            }
+        });
+        let scene = Arc::new(Scene::new(volume));
+        let camera = Camera::framing(&scene.grid().bounds(), 24, 24, 45.0);
+        RenderRequest {
+            scene,
+            camera,
+            tf: TransferFunction::preset("ramp", SampleType::U8).unwrap(),
+            options: RenderOptions {
+                mode: raycaster::integrator::RenderMode::Metaballs,
+                ..RenderOptions::default()
+            },
+            renderer: RendererKind::Serial,
+            threads: 1,
+            level: Level::new(2, 1),
+            preview: true,
+            metaballs: params,
+        }
+    }
+
+    /// Too many balls is a message in the viewer's terms; a frame comes at
+    /// the level's size and counts its balls.
+    #[test]
+    fn frames_come_at_the_levels_size_and_too_many_balls_is_a_viewer_message() {
+        let params = MetaballParams {
+            threshold: 100.0,
+            stride: 1,
+            radius: 1.5,
+            ..MetaballParams::default()
+        };
+        let mut state = State::default();
+        let job = |params| Job {
+            id: 7,
+            request: request(params),
+        };
+        let f = state.render(&job(params)).unwrap();
+        assert_eq!((f.id, f.frame.width, f.frame.height), (7, 12, 12));
+        let info = f.metaballs.unwrap();
+        assert!(info.balls > 100 && info.builds == 1, "{info:?}");
+        let e = state
+            .render(&job(MetaballParams {
+                max_balls: 10,
+                ..params
+            }))
+            .unwrap_err();
+        assert_eq!(e.id, 7);
+        assert!(
+            e.message.contains("raise the ball threshold or the stride")
+                && !e.message.contains("--"),
+            "{}",
+            e.message
+        );
     }
 }
