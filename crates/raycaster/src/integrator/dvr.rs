@@ -9,6 +9,10 @@ use crate::accel::RunKind;
 use crate::simd::{self, Isa, Kernel, LANES};
 use crate::volume::{CornerGradients, Volume, corner_gradients, interpolate_gradient};
 
+/// The most samples [`DvrState::integrate`] gathers from consecutive runs
+/// before marching them.
+const MAX_GATHER: u32 = 64 * LANES as u32;
+
 /// Corner gradients of a cell where every difference is zero.
 const ZERO_GRADIENTS: CornerGradients = [Vec4::ZERO; 8];
 
@@ -21,6 +25,10 @@ pub struct DvrState {
     pub alpha: f32,
     /// Set once `A` reached the ERT threshold.
     pub terminated: bool,
+    /// How many samples of consecutive runs [`Integrator::integrate`]
+    /// gathers before marching them (0: one batch). It doubles with every
+    /// march of the ray, across the spans of a ray split into bricks.
+    pub gather: u32,
 }
 
 impl Integrator for DvrState {
@@ -29,15 +37,21 @@ impl Integrator for DvrState {
     const OCCUPANCY: Occupancy = Occupancy::Visible;
 
     /// Composites the span's samples front to back; uniform macrocells in
-    /// closed form. Consecutive runs to be marched are marched as one, so
-    /// batches stay full across macrocell boundaries.
+    /// closed form. Consecutive runs to be marched are marched together (a
+    /// growing number of samples at a time), so batches stay full across
+    /// macrocell boundaries.
     #[inline]
     fn integrate<V: Volume>(&mut self, span: Span<'_, V>) -> u64 {
         let (ctx, seg) = (span.ctx, span.seg);
         let mut taken = 0u64;
         let threshold = ctx.ert.unwrap_or(f32::INFINITY);
-        // Samples `pending.0..pending.1` still to march.
+        // Samples `pending.0..pending.1` still to march, and how many of
+        // them to gather before marching: it starts at one batch and doubles
+        // with every march, so a ray stopped by a surface at its entry does
+        // not first walk every macrocell of its span, while a long march
+        // still keeps its batches full across macrocell boundaries.
         let mut pending = (0u32, 0u32);
+        let mut gather = self.gather.max(LANES as u32);
         for run in span.runs() {
             let march = match run.kind {
                 RunKind::Empty => false,
@@ -47,13 +61,17 @@ impl Integrator for DvrState {
                 RunKind::Cell(i) => !ctx.macrocells.uniform[i] || ctx.gradient_opacity.is_some(),
                 RunKind::Unknown => true,
             };
-            if march && run.start == pending.1 {
+            if march && run.start == pending.1 && pending.1 - pending.0 < gather {
                 pending.1 = run.end;
                 continue;
             }
-            taken += self.march(ctx, seg, pending.0, pending.1, threshold);
-            if self.terminated {
-                return taken;
+            if pending.0 < pending.1 {
+                taken += self.march(ctx, seg, pending.0, pending.1, threshold);
+                if self.terminated {
+                    return taken;
+                }
+                gather = gather.saturating_mul(8).min(MAX_GATHER);
+                self.gather = gather;
             }
             pending = (run.start, run.start);
             if march {
