@@ -250,15 +250,13 @@ fn first_hit_n<const N: usize, const BOUND: bool>(
             }
             let m = &s.met[slot as usize];
             peak -= m.peak;
-            if m.epoch == epoch {
-                for k in 0..=N {
-                    poly[k] -= m.kp[k];
-                }
+            let kp = if m.epoch == epoch {
+                m.kp
             } else {
-                let kp = compose_at(kernel, m, t_org, sc);
-                for k in 0..=N {
-                    poly[k] -= kp[k];
-                }
+                compose_at(kernel, m, t_org, sc)
+            };
+            for (a, c) in poly.iter_mut().zip(kp).take(N + 1) {
+                *a -= c;
             }
         } else {
             // A new origin at the sweep when the last one is far behind (so
@@ -275,8 +273,8 @@ fn first_hit_n<const N: usize, const BOUND: bool>(
             let m = &mut s.met[slot as usize];
             peak += m.peak;
             let kp = compose_at(kernel, m, t_org, sc);
-            for k in 0..=N {
-                poly[k] += kp[k];
+            for (a, c) in poly.iter_mut().zip(kp).take(N + 1) {
+                *a += c;
             }
             m.kp = kp;
             m.epoch = epoch;
