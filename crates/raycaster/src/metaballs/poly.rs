@@ -14,11 +14,29 @@
 
 use super::kernel::{MAX_TERMS, Poly};
 
-/// `p(x)` for a polynomial of degree `n`.
+/// `p(x)` for a polynomial of degree `n` (<= 6).
 #[inline]
 pub fn eval(p: &Poly, n: usize, x: f64) -> f64 {
-    let mut acc = p[n];
-    for k in (0..n).rev() {
+    match n {
+        6 => eval_n::<6>(p, x),
+        4 => eval_n::<4>(p, x),
+        _ => {
+            let mut acc = p[n];
+            for k in (0..n).rev() {
+                acc = acc * x + p[k];
+            }
+            acc
+        }
+    }
+}
+
+/// [`eval`] for a degree known at compile time (unrolled).
+#[inline(always)]
+pub fn eval_n<const N: usize>(p: &Poly, x: f64) -> f64 {
+    let mut acc = p[N];
+    let mut k = N;
+    while k > 0 {
+        k -= 1;
         acc = acc * x + p[k];
     }
     acc
@@ -27,11 +45,32 @@ pub fn eval(p: &Poly, n: usize, x: f64) -> f64 {
 /// Replaces `p(x)` by `p(x + d)` (Taylor shift, `n(n+1)/2` multiply-adds).
 #[inline]
 pub fn shift(p: &mut Poly, n: usize, d: f64) {
+    match n {
+        6 => shift_n::<6>(p, d),
+        4 => shift_n::<4>(p, d),
+        _ => {
+            if d == 0.0 {
+                return;
+            }
+            for i in 0..n {
+                for k in (i..n).rev() {
+                    p[k] += d * p[k + 1];
+                }
+            }
+        }
+    }
+}
+
+/// [`shift`] for a degree known at compile time (unrolled).
+#[inline(always)]
+pub fn shift_n<const N: usize>(p: &mut Poly, d: f64) {
     if d == 0.0 {
         return;
     }
-    for i in 0..n {
-        for k in (i..n).rev() {
+    for i in 0..N {
+        let mut k = N;
+        while k > i {
+            k -= 1;
             p[k] += d * p[k + 1];
         }
     }
@@ -53,22 +92,64 @@ const BINOM: [[f64; MAX_TERMS]; MAX_TERMS] = {
     t
 };
 
+/// `1 / C(i, k)` (0 where `k > i`).
+const INV_BINOM: [[f64; MAX_TERMS]; MAX_TERMS] = {
+    let mut t = [[0.0; MAX_TERMS]; MAX_TERMS];
+    let mut i = 0;
+    while i < MAX_TERMS {
+        let mut k = 0;
+        while k <= i {
+            t[i][k] = 1.0 / BINOM[i][k];
+            k += 1;
+        }
+        i += 1;
+    }
+    t
+};
+
 /// Bernstein coefficients of `p` (degree `n`) on `[0, len]`.
 #[inline]
 pub fn bernstein(p: &Poly, n: usize, len: f64) -> Poly {
-    let mut scaled = [0.0; MAX_TERMS];
+    match n {
+        6 => bernstein_n::<6>(p, len),
+        4 => bernstein_n::<4>(p, len),
+        _ => {
+            let mut scaled = [0.0; MAX_TERMS];
+            let mut l = 1.0;
+            for k in 0..=n {
+                scaled[k] = p[k] * l / BINOM[n][k];
+                l *= len;
+            }
+            let mut b = [0.0; MAX_TERMS];
+            for i in 0..=n {
+                let mut acc = 0.0;
+                for k in 0..=i {
+                    acc += BINOM[i][k] * scaled[k];
+                }
+                b[i] = acc;
+            }
+            b
+        }
+    }
+}
+
+/// [`bernstein`] for a degree known at compile time (unrolled): the
+/// coefficients scaled by `len^k / C(N, k)`, then their binomial transform
+/// `b_i = Σ_k C(i, k)·s_k` as `N` passes of running sums.
+#[inline(always)]
+pub fn bernstein_n<const N: usize>(p: &Poly, len: f64) -> Poly {
+    let mut b = [0.0; MAX_TERMS];
     let mut l = 1.0;
-    for k in 0..=n {
-        scaled[k] = p[k] * l / BINOM[n][k];
+    for k in 0..=N {
+        b[k] = p[k] * l * INV_BINOM[N][k];
         l *= len;
     }
-    let mut b = [0.0; MAX_TERMS];
-    for i in 0..=n {
-        let mut acc = 0.0;
-        for k in 0..=i {
-            acc += BINOM[i][k] * scaled[k];
+    for r in 0..N {
+        let mut i = N;
+        while i > r {
+            b[i] += b[i - 1];
+            i -= 1;
         }
-        b[i] = acc;
     }
     b
 }
@@ -77,28 +158,58 @@ pub fn bernstein(p: &Poly, n: usize, len: f64) -> Poly {
 /// within `tol`; `Some(0)` when `p(0) >= 0`. See the module docs for what
 /// may be missed (two roots closer than `tol`).
 pub fn first_root(p: &Poly, n: usize, len: f64, tol: f64) -> Option<f64> {
+    match n {
+        6 => first_root_n::<6>(p, len, tol),
+        5 => first_root_n::<5>(p, len, tol),
+        4 => first_root_n::<4>(p, len, tol),
+        3 => first_root_n::<3>(p, len, tol),
+        2 => first_root_n::<2>(p, len, tol),
+        1 => first_root_n::<1>(p, len, tol),
+        _ => first_root_n::<0>(p, len, tol),
+    }
+}
+
+/// The cheap test of [`first_root_n`]: `false` when `p` (degree `N`) is
+/// negative on all of `[0, len]` by the bound
+/// `p <= p0 + Σ max(p_k, 0)·len^k`.
+#[inline(always)]
+pub fn may_reach_zero_n<const N: usize>(p: &Poly, len: f64) -> bool {
+    let mut upper = 0.0;
+    let mut k = N;
+    while k > 0 {
+        upper = (upper + p[k].max(0.0)) * len;
+        k -= 1;
+    }
+    !(p[0] < 0.0 && p[0] + upper < 0.0)
+}
+
+/// [`first_root`] for a degree known at compile time.
+#[inline]
+pub fn first_root_n<const N: usize>(p: &Poly, len: f64, tol: f64) -> Option<f64> {
     // A cheap bound first: on [0, len], p <= p0 + Σ max(p_k, 0)·len^k. On
     // the short intervals between the events of many balls it is usually
     // enough to rule a root out.
-    let mut upper = 0.0;
-    for k in (1..=n).rev() {
-        upper = (upper + p[k].max(0.0)) * len;
-    }
-    if p[0] < 0.0 && p[0] + upper < 0.0 {
+    if !may_reach_zero_n::<N>(p, len) {
         return None;
     }
-    let b = bernstein(p, n, len);
-    search(p, &b, n, 0.0, len, tol.max(len * 1e-12))
+    first_root_bernstein_n::<N>(p, len, tol)
+}
+
+/// [`first_root_n`] without the cheap bound: Bernstein isolation.
+#[inline(never)]
+fn first_root_bernstein_n<const N: usize>(p: &Poly, len: f64, tol: f64) -> Option<f64> {
+    let b = bernstein_n::<N>(p, len);
+    search::<N>(p, &b, 0.0, len, tol.max(len * 1e-12))
 }
 
 /// Sign changes in the Bernstein coefficients (zeros skipped): an upper
 /// bound on the roots in the interval, exact when 0 or 1 (Descartes' rule
 /// for the Bernstein basis).
 #[inline]
-fn sign_changes(b: &Poly, n: usize) -> u32 {
+fn sign_changes<const N: usize>(b: &Poly) -> u32 {
     let mut changes = 0;
     let mut prev = 0.0f64;
-    for &c in &b[..=n] {
+    for &c in &b[..=N] {
         if c != 0.0 {
             if prev != 0.0 && (c > 0.0) != (prev > 0.0) {
                 changes += 1;
@@ -111,31 +222,31 @@ fn sign_changes(b: &Poly, n: usize) -> u32 {
 
 /// The first root of `p` on `[a, a + w]`, whose Bernstein coefficients are
 /// `b`, with `p(a) < 0` unless it is the first call.
-fn search(p: &Poly, b: &Poly, n: usize, a: f64, w: f64, tol: f64) -> Option<f64> {
+fn search<const N: usize>(p: &Poly, b: &Poly, a: f64, w: f64, tol: f64) -> Option<f64> {
     if b[0] >= 0.0 {
         return Some(a);
     }
-    match sign_changes(b, n) {
+    match sign_changes::<N>(b) {
         // p(a) < 0 and no sign change: p <= 0 on the interval.
         0 => return None,
         // Exactly one root, p(a) < 0 < p(a + w): refine it.
-        1 if b[n] > 0.0 => return Some(refine(p, n, a, a + w, tol)),
+        1 if b[N] > 0.0 => return Some(refine::<N>(p, a, a + w, tol)),
         _ => {}
     }
     if w <= tol {
         // A sign change between the leaf's ends: interpolate.
-        return (b[n] >= 0.0).then(|| a + w * (b[0] / (b[0] - b[n])));
+        return (b[N] >= 0.0).then(|| a + w * (b[0] / (b[0] - b[N])));
     }
-    let (left, right) = split(b, n);
+    let (left, right) = split::<N>(b);
     let h = 0.5 * w;
-    search(p, &left, n, a, h, tol).or_else(|| search(p, &right, n, a + h, h, tol))
+    search::<N>(p, &left, a, h, tol).or_else(|| search::<N>(p, &right, a + h, h, tol))
 }
 
 /// The one root of `p` in `[lo, hi]` (`p(lo) < 0 < p(hi)`) to within
 /// `tol`: regula falsi with the Illinois modification, the bracket kept.
-fn refine(p: &Poly, n: usize, mut lo: f64, mut hi: f64, tol: f64) -> f64 {
-    let mut f_lo = eval(p, n, lo);
-    let mut f_hi = eval(p, n, hi);
+fn refine<const N: usize>(p: &Poly, mut lo: f64, mut hi: f64, tol: f64) -> f64 {
+    let mut f_lo = eval_n::<N>(p, lo);
+    let mut f_hi = eval_n::<N>(p, hi);
     if !(f_lo < 0.0 && f_hi > 0.0) {
         // Rounding disagrees with the Bernstein signs: bisect on them.
         f_lo = f_lo.min(-f64::MIN_POSITIVE);
@@ -150,7 +261,7 @@ fn refine(p: &Poly, n: usize, mut lo: f64, mut hi: f64, tol: f64) -> f64 {
         if !(x > lo && x < hi) {
             x = 0.5 * (lo + hi);
         }
-        let fx = eval(p, n, x);
+        let fx = eval_n::<N>(p, x);
         if fx >= 0.0 {
             hi = x;
             f_hi = fx;
@@ -178,18 +289,18 @@ fn refine(p: &Poly, n: usize, mut lo: f64, mut hi: f64, tol: f64) -> f64 {
 
 /// de Casteljau at the midpoint: the Bernstein coefficients of both halves.
 #[inline]
-fn split(b: &Poly, n: usize) -> (Poly, Poly) {
+fn split<const N: usize>(b: &Poly) -> (Poly, Poly) {
     let mut work = *b;
     let mut left = [0.0; MAX_TERMS];
     let mut right = [0.0; MAX_TERMS];
     left[0] = work[0];
-    right[n] = work[n];
-    for r in 1..=n {
-        for k in 0..=n - r {
+    right[N] = work[N];
+    for r in 1..=N {
+        for k in 0..=N - r {
             work[k] = 0.5 * (work[k] + work[k + 1]);
         }
         left[r] = work[0];
-        right[n - r] = work[n - r];
+        right[N - r] = work[N - r];
     }
     (left, right)
 }
@@ -232,7 +343,7 @@ mod tests {
             assert!(v >= lo - 1e-12 && v <= hi + 1e-12);
         }
         // The halves of a split evaluate to p on each half.
-        let (l, r) = split(&b, 6);
+        let (l, r) = split::<6>(&b);
         let power_of = |bc: &Poly, x: f64| {
             // Bernstein evaluation on [0, 1].
             (0..=6)

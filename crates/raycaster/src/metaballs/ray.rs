@@ -4,14 +4,21 @@
 //! The ray takes its tile's candidates in `t_lo` order, as they can
 //! matter: a candidate is tested (ray against sphere) only once the sweep
 //! has reached its `t_lo`. Each ball the ray meets gives an entry and an
-//! exit event; between consecutive events the set of active balls is fixed,
-//! so `F − T` is a polynomial in `t` there (degree 6 for Wyvill, 4 for
-//! Murakami). The running sum is kept in the coordinate `x = (t − t₀)/S`
-//! of the current interval start `t₀` (`S` the largest radius): it is
-//! Taylor-shifted to each event and a ball's polynomial is added at its
-//! entry and subtracted at its exit (the sum resets to 0 when no ball is
-//! active). The first root in an interval is isolated with Bernstein bounds
-//! ([`poly::first_root`]), to `1e-4·R_min`.
+//! exit event (the exit queued when the ball is entered); between
+//! consecutive events the set of active balls is fixed, so `F − T` is a
+//! polynomial in `t` there (degree 6 for Wyvill, 4 for Murakami).
+//!
+//! The running sum of the active balls' polynomials is kept in a
+//! coordinate `x = (t − t_org)/S` (`S` the largest radius) whose origin
+//! stays put while the sweep is less than `MAX_LAG` past it at an entry:
+//! a ball's polynomial is added at its entry and the same coefficients are
+//! subtracted at its exit while the origin has not moved (the sum resets
+//! to 0 when no ball is active). An interval is first tested against the
+//! sum of the active balls' peaks (a ball's kernel is largest where the ray
+//! passes closest to its centre): below the threshold it holds no root and
+//! costs no polynomial work. Otherwise a copy of the sum is Taylor-shifted
+//! to the interval's start and its first root isolated with Bernstein
+//! bounds ([`poly::first_root`]), to `1e-4·R_min`.
 
 use std::cmp::Reverse;
 use std::collections::BinaryHeap;
@@ -57,12 +64,22 @@ impl Event {
 }
 
 /// A ball the ray meets: `b = (c − o)·d`, `h2` the squared distance of the
-/// centre from the ray's line.
+/// centre from the ray's line, `t1` where the ray leaves it, `peak` the
+/// kernel's largest value along the ray (at `t = b`).
+///
+/// `kp` is the ball's polynomial as added at its entry, in the coordinates
+/// of origin `epoch`: while the origin has not moved, the exit subtracts
+/// it instead of composing the kernel again.
 #[derive(Debug, Clone, Copy)]
 struct Met {
     ball: u32,
+    epoch: u32,
     b: f64,
     h2: f64,
+    inv_r2: f64,
+    t1: f64,
+    peak: f64,
+    kp: Poly,
 }
 
 /// Per-thread buffers reused from ray to ray.
@@ -100,15 +117,59 @@ pub struct RayResult {
     pub met: u32,
 }
 
+/// How far (in units of `scale`) the running polynomial's origin may lag
+/// behind an entry before it is moved (Taylor-shifted) to the sweep: with
+/// the chords of the balls active since, the origin is never more than
+/// `MAX_LAG + 2` behind the sweep, which bounds the size of the
+/// coefficients, so their rounding.
+const MAX_LAG: f64 = 1.0;
+
+/// Slack on the peak bound for the rounding of its running sum.
+const PEAK_SLACK: f64 = 1e-9;
+
+/// The largest value of a ball's kernel along a ray: at the point closest
+/// to its centre, `h2` the squared distance of the centre from the ray's
+/// line, `inv_r2` the ball's `1/R²` (the kernel decreases with distance).
+#[inline]
+fn peak_of(kernel: Kernel, h2: f64, inv_r2: f64) -> f64 {
+    kernel.at_s(h2 * inv_r2)
+}
+
 /// The first `t >= 0` where the field of the `candidates` (indices into
 /// `p.balls`, in `t_lo` order) crosses the threshold along `ray`.
 pub fn first_hit(p: &RayParams<'_>, ray: &Ray, candidates: &[u32], s: &mut Scratch) -> RayResult {
+    match p.kernel {
+        Kernel::Wyvill => first_hit_n::<6, true>(p, ray, candidates, s),
+        Kernel::Murakami => first_hit_n::<4, true>(p, ray, candidates, s),
+    }
+}
+
+/// [`first_hit`] for a kernel of degree `N` along the ray.
+///
+/// The running sum `poly`, its origin `t_org` and the peak bound are as in
+/// the module docs (`BOUND = false` turns the peak bound off, for the
+/// tests).
+#[inline(always)]
+fn first_hit_n<const N: usize, const BOUND: bool>(
+    p: &RayParams<'_>,
+    ray: &Ray,
+    candidates: &[u32],
+    s: &mut Scratch,
+) -> RayResult {
     s.heap.clear();
     s.met.clear();
     let o = ray.origin.as_dvec3();
     let d = ray.dir.as_dvec3();
-    let n = p.kernel.degree();
+    let kernel = p.kernel;
+    let sc = p.scale;
+    let inv_sc = 1.0 / sc;
     let mut poly: Poly = [0.0; MAX_TERMS];
+    let mut t_org = 0.0f64;
+    // Counts the moves of the origin (an entry's polynomial is valid at its
+    // exit while this has not changed).
+    let mut epoch = 0u32;
+    // The sum of the active balls' peaks: F <= peak along the interval.
+    let mut peak = 0.0f64;
     let mut active = 0u32;
     let mut t_cur = 0.0f64;
     // +1: search for F − T rising through 0; −1 when the ray starts inside.
@@ -137,9 +198,18 @@ pub fn first_hit(p: &RayParams<'_>, ray: &Ray, candidates: &[u32], s: &mut Scrat
                 continue;
             }
             let slot = s.met.len() as u32;
-            s.met.push(Met { ball: k, b, h2 });
+            s.met.push(Met {
+                ball: k,
+                b,
+                h2,
+                inv_r2: fb.inv_r2,
+                t1,
+                peak: peak_of(kernel, h2, fb.inv_r2),
+                epoch: u32::MAX,
+                kp: [0.0; MAX_TERMS],
+            });
+            // The exit is queued when the ball is entered.
             s.heap.push(Reverse(Event::new(t0.max(t_cur), slot, false)));
-            s.heap.push(Reverse(Event::new(t1, slot, true)));
         }
         let Some(Reverse(ev)) = s.heap.pop() else {
             return RayResult {
@@ -147,53 +217,83 @@ pub fn first_hit(p: &RayParams<'_>, ray: &Ray, candidates: &[u32], s: &mut Scrat
                 met: s.met.len() as u32,
             };
         };
-        // The interval [t_cur, ev.t()] with the active set fixed.
-        if active > 0 && ev.t() > t_cur {
-            let len = (ev.t() - t_cur) / p.scale;
+        let t_ev = ev.t();
+        // The interval [t_cur, t_ev] with the active set fixed.
+        if active > 0
+            && t_ev > t_cur
+            && (!BOUND || sign == Some(-1.0) || peak + PEAK_SLACK >= p.threshold)
+        {
+            // F − T in the interval's own coordinate x = (t − t_cur)/S.
             let mut q = poly;
+            poly::shift_n::<N>(&mut q, (t_cur - t_org) * inv_sc);
+            let len = (t_ev - t_cur) * inv_sc;
             q[0] -= p.threshold;
             let sg = *sign.get_or_insert(if q[0] > 0.0 { -1.0 } else { 1.0 });
             if sg < 0.0 {
                 q.iter_mut().for_each(|c| *c = -*c);
             }
-            if let Some(x) = poly::first_root(&q, n, len, p.tol) {
+            if let Some(x) = poly::first_root_n::<N>(&q, len, p.tol) {
                 return RayResult {
-                    t: Some(t_cur + x * p.scale),
+                    t: Some(t_cur + x * sc),
                     met: s.met.len() as u32,
                 };
             }
         }
-        if active > 0 {
-            poly::shift(&mut poly, n, (ev.t() - t_cur) / p.scale);
-        }
-        t_cur = ev.t();
-        let m = s.met[ev.slot() as usize];
-        let fb = &p.balls[m.ball as usize];
-        // s(x) = ((t_cur + S·x − b)² + h2)/R².
-        let e = t_cur - m.b;
-        let sc = p.scale;
-        let q = [
-            (e * e + m.h2) * fb.inv_r2,
-            2.0 * sc * e * fb.inv_r2,
-            sc * sc * fb.inv_r2,
-        ];
-        let kp = p.kernel.compose(q);
+        t_cur = t_ev;
+        let slot = ev.slot();
         if ev.exit() {
             active -= 1;
             if active == 0 {
                 poly = [0.0; MAX_TERMS];
+                peak = 0.0;
+                continue;
+            }
+            let m = &s.met[slot as usize];
+            peak -= m.peak;
+            let kp = if m.epoch == epoch {
+                m.kp
             } else {
-                for (a, c) in poly.iter_mut().zip(kp) {
-                    *a -= c;
-                }
+                compose_at(kernel, m, t_org, sc)
+            };
+            for (a, c) in poly.iter_mut().zip(kp).take(N + 1) {
+                *a -= c;
             }
         } else {
+            // A new origin at the sweep when the last one is far behind (so
+            // the coefficients stay small) or nothing is active.
+            if active == 0 {
+                t_org = t_cur;
+                epoch += 1;
+            } else if (t_cur - t_org) * inv_sc > MAX_LAG {
+                poly::shift_n::<N>(&mut poly, (t_cur - t_org) * inv_sc);
+                t_org = t_cur;
+                epoch += 1;
+            }
             active += 1;
-            for (a, c) in poly.iter_mut().zip(kp) {
+            let m = &mut s.met[slot as usize];
+            peak += m.peak;
+            let kp = compose_at(kernel, m, t_org, sc);
+            for (a, c) in poly.iter_mut().zip(kp).take(N + 1) {
                 *a += c;
             }
+            m.kp = kp;
+            m.epoch = epoch;
+            let t1 = m.t1;
+            s.heap.push(Reverse(Event::new(t1, slot, true)));
         }
     }
+}
+
+/// A met ball's kernel as a polynomial in `x = (t − t_org)/S`:
+/// `K(s(x))` with `s(x) = ((t_org + S·x − b)² + h2)/R²`.
+#[inline(always)]
+fn compose_at(kernel: Kernel, m: &Met, t_org: f64, sc: f64) -> Poly {
+    let e = t_org - m.b;
+    kernel.compose([
+        (e * e + m.h2) * m.inv_r2,
+        2.0 * sc * e * m.inv_r2,
+        sc * sc * m.inv_r2,
+    ])
 }
 
 /// The colour at the hit `t` of `ray` found by [`first_hit`] with `s`: the
@@ -264,4 +364,146 @@ pub fn gradient(p: &RayParams<'_>, x: DVec3, candidates: &[u32]) -> DVec3 {
         grad += (p.kernel.ds_at_s(s) * 2.0 * fb.inv_r2) * v;
     }
     grad
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::camera::Camera;
+    use crate::metaballs::balls::{Ball, Balls};
+    use crate::metaballs::tiles::TileLists;
+
+    /// The field of `balls` at `x`, directly from the kernel.
+    fn field(balls: &[FrameBall], kernel: Kernel, x: DVec3) -> f64 {
+        balls
+            .iter()
+            .map(|b| kernel.at_s((x - b.center).length_squared() * b.inv_r2))
+            .sum()
+    }
+
+    fn random_balls(rng: &mut fastrand::Rng, n: usize, spread: f32) -> Balls {
+        let balls = (0..n)
+            .map(|_| Ball {
+                center: Vec3::new(
+                    rng.f32() * spread - spread / 2.0,
+                    rng.f32() * spread - spread / 2.0,
+                    rng.f32() * spread - spread / 2.0,
+                ),
+                radius: 0.3 + rng.f32() * 0.6,
+                value: 0.0,
+            })
+            .collect();
+        Balls::new(balls, false).unwrap()
+    }
+
+    #[test]
+    fn the_peak_bound_is_above_the_field_sampled_densely_along_random_rays() {
+        let mut rng = fastrand::Rng::with_seed(21);
+        for kernel in [Kernel::Wyvill, Kernel::Murakami] {
+            let balls = random_balls(&mut rng, 40, 3.0);
+            let lists = TileLists::build(
+                &balls,
+                &Camera::look_at(Vec3::new(0.0, 0.0, 6.0), Vec3::ZERO, 8, 8)
+                    .frame()
+                    .unwrap(),
+                8,
+                8,
+                8,
+                |_| Vec3::ONE,
+            )
+            .unwrap();
+            let fbs = &lists.balls;
+            let mut checked = 0;
+            for _ in 0..300 {
+                let o = DVec3::new(rng.f64() * 8.0 - 4.0, rng.f64() * 8.0 - 4.0, 6.0);
+                let target = DVec3::new(
+                    rng.f64() * 2.0 - 1.0,
+                    rng.f64() * 2.0 - 1.0,
+                    rng.f64() * 2.0 - 1.0,
+                );
+                let d = (target - o).normalize();
+                // Each ball's chord and peak along this ray.
+                let chords: Vec<(f64, f64, f64)> = fbs
+                    .iter()
+                    .filter_map(|fb| {
+                        let oc = fb.center - o;
+                        let b = oc.dot(d);
+                        let h2 = (oc - b * d).length_squared();
+                        (h2 < fb.r2).then(|| {
+                            let half = (fb.r2 - h2).sqrt();
+                            (b - half, b + half, peak_of(kernel, h2, fb.inv_r2))
+                        })
+                    })
+                    .collect();
+                for i in 0..4000 {
+                    let t = i as f64 * 12.0 / 4000.0;
+                    let bound: f64 = chords
+                        .iter()
+                        .filter(|c| c.0 <= t && t <= c.1)
+                        .map(|c| c.2)
+                        .sum();
+                    let f = field(fbs, kernel, o + t * d);
+                    assert!(
+                        f <= bound + 1e-12,
+                        "{kernel:?}: F {f} > bound {bound} at t {t}"
+                    );
+                    checked += (f > 0.0) as u32;
+                }
+            }
+            assert!(checked > 10_000, "{checked}");
+        }
+    }
+
+    #[test]
+    fn the_peak_bound_changes_no_hit() {
+        let mut rng = fastrand::Rng::with_seed(8);
+        for kernel in [Kernel::Wyvill, Kernel::Murakami] {
+            for (n, spread, threshold) in [(30, 3.0, 0.5), (200, 2.5, 0.3), (60, 4.0, 0.9)] {
+                let balls = random_balls(&mut rng, n, spread);
+                let cam = Camera::look_at(Vec3::new(0.5, 1.0, 6.0), Vec3::ZERO, 48, 40);
+                let f = cam.frame().unwrap();
+                let lists = TileLists::build(&balls, &f, 48, 40, 16, |_| Vec3::ONE).unwrap();
+                let p = RayParams {
+                    balls: &lists.balls,
+                    kernel,
+                    threshold,
+                    scale: 0.9,
+                    tol: 1e-4 * 0.3 / 0.9,
+                    shading: None,
+                    lights: &[],
+                };
+                let (mut s, mut hits) = (Scratch::default(), 0);
+                for j in 0..40 {
+                    for i in 0..48 {
+                        let ray = f.ray(i, j);
+                        let cands = lists.candidates(i / 16, j / 16);
+                        let with = match kernel {
+                            Kernel::Wyvill => first_hit_n::<6, true>(&p, &ray, cands, &mut s),
+                            Kernel::Murakami => first_hit_n::<4, true>(&p, &ray, cands, &mut s),
+                        };
+                        let without = match kernel {
+                            Kernel::Wyvill => first_hit_n::<6, false>(&p, &ray, cands, &mut s),
+                            Kernel::Murakami => first_hit_n::<4, false>(&p, &ray, cands, &mut s),
+                        };
+                        match (with.t, without.t) {
+                            (Some(a), Some(b)) => {
+                                assert!((a - b).abs() < 1e-4, "{kernel:?} {i},{j}: {a} vs {b}");
+                                hits += 1;
+                            }
+                            (None, None) => {}
+                            // Only a grazing pair of roots, within the
+                            // tolerance of each other, may be seen by one
+                            // and not the other.
+                            (Some(a), None) | (None, Some(a)) => {
+                                let x = ray.origin.as_dvec3() + a * ray.dir.as_dvec3();
+                                let g = field(&lists.balls, kernel, x) - threshold;
+                                assert!(g.abs() < 1e-6, "{kernel:?} {i},{j}: {a} F - T = {g}");
+                            }
+                        }
+                    }
+                }
+                assert!(hits > 50, "{kernel:?} {n}: {hits}");
+            }
+        }
+    }
 }
