@@ -525,7 +525,9 @@ pub struct RenderArgs {
     /// owns a band of rows and merges the fragments the others send it,
     /// rank 0 gathers the finished bands; binary-swap: log2(P) pairwise
     /// exchanges of image halves along the k-d tree (P a power of two,
-    /// otherwise direct send). The default was the fastest measured (README).
+    /// otherwise direct send). Default direct-send: of direct send and
+    /// binary swap the faster at P = 4 in the README's measurements, and
+    /// it works for any P.
     #[arg(
         long,
         value_name = "HOW",
