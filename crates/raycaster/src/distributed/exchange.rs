@@ -164,6 +164,9 @@ impl BinarySwap {
         // The bounding rectangle of the data each rank holds in its region.
         let mut valid = rects.to_vec();
         let mut rounds = vec![Vec::with_capacity(levels); p];
+        // `level` indexes every rank's schedule (`pairs[r][level]`), not
+        // one sequence.
+        #[allow(clippy::needless_range_loop)]
         for level in 0..levels {
             let mut next_region = region.clone();
             let mut next_valid = valid.clone();
