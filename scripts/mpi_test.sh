@@ -8,12 +8,16 @@
 #   - renders DVR (ERT off and on), MIP and iso, from outside and from
 #     inside the volume, with `mpirun -n P vol_app render --distributed` for
 #     P = 1, 2, 4 (oversubscribed on a 2-core machine; `--bind-to none`)
-#     and compares each PNG with the single-process render (compare_png:
-#     PSNR >= 50 dB; DVR with ERT: at most 3 levels anywhere, what the ERT
-#     threshold of 0.99 allows);
+#     and each compositing method (--composite gather, direct-send,
+#     binary-swap), and compares each PNG with the single-process render
+#     (compare_png: PSNR >= 50 dB; DVR with ERT: at most 3 levels anywhere,
+#     what the ERT threshold of 0.99 allows);
+#   - binary swap with P = 3 (not a power of two): falls back to direct
+#     send (the --stats say so) and still matches;
 #   - checks that a missing file, and one rank failing to open its part,
 #     end every rank with an error (non-zero exit, no hang: `timeout`);
-#   - times --repeat 3 --stats for P = 1, 2, 4 (target/mpi/stats_P*.json).
+#   - times --repeat 3 --stats for P = 1, 2, 4 and each method
+#     (target/mpi/stats_pP.METHOD.json).
 #
 #   scripts/mpi_test.sh [--no-build]
 #
@@ -28,7 +32,7 @@ build=1
 while [ $# -gt 0 ]; do
     case "$1" in
         --no-build) build=0; shift ;;
-        -h|--help) sed -n '2,22p' "$0"; exit 0 ;;
+        -h|--help) sed -n '2,27p' "$0"; exit 0 ;;
         *) echo "mpi_test: unknown option $1 (see --help)" >&2; exit 2 ;;
     esac
 done
@@ -71,16 +75,19 @@ mpirun_() {
 common=(--size 160x128 --tf-preset shapes --step 0.5 --threads 1)
 inside=(--camera-pos 40,35,30 --look-at 10,60,0 --fov 80)
 checks=0
+methods=(gather direct-send binary-swap)
 run_case() {
     local name=$1 limit=$2 file=$3
     shift 3
     "$app" render "$file" "${common[@]}" "$@" --out "$dir/$name.single.png"
-    for p in 1 2 4; do
-        mpirun_ "$p" "$app" render "$file" --distributed "${common[@]}" "$@" \
-            --out "$dir/$name.p$p.png"
-        # shellcheck disable=SC2086
-        "$compare" "$dir/$name.single.png" "$dir/$name.p$p.png" $limit
-        checks=$((checks + 1))
+    for m in "${methods[@]}"; do
+        for p in 1 2 4; do
+            mpirun_ "$p" "$app" render "$file" --distributed "${common[@]}" "$@" \
+                --composite "$m" --out "$dir/$name.$m.p$p.png"
+            # shellcheck disable=SC2086
+            "$compare" "$dir/$name.single.png" "$dir/$name.$m.p$p.png" $limit
+            checks=$((checks + 1))
+        done
     done
 }
 
@@ -94,6 +101,25 @@ for layout in linear bricked; do
     run_case "$layout-dvr-inside" "--min-psnr 50" "$f" --mode dvr --ert off "${inside[@]}"
     run_case "$layout-iso-inside" "--min-psnr 50" "$f" --mode iso --iso 97 "${inside[@]}"
 done
+
+echo "== mpi_test: binary swap with P = 3 (not a power of two: falls back to direct send)"
+f="$dir/shapes_linear.vol"
+for c in "dvr|--min-psnr 50|--mode dvr --ert off" "mip|--min-psnr 50|--mode mip" \
+    "iso|--min-psnr 50|--mode iso --iso 97" "dvr-inside|--min-psnr 50|--mode dvr --ert off ${inside[*]}"; do
+    IFS='|' read -r name limit opts <<<"$c"
+    # shellcheck disable=SC2086
+    mpirun_ 3 "$app" render "$f" --distributed "${common[@]}" $opts --composite binary-swap \
+        --out "$dir/linear-$name.binary-swap.p3.png" --stats >"$dir/p3.json"
+    grep -q '"compositing":"direct-send"' "$dir/p3.json"
+    grep -q '"composite_requested":"binary-swap"' "$dir/p3.json"
+    # shellcheck disable=SC2086
+    "$compare" "$dir/linear-$name.single.png" "$dir/linear-$name.binary-swap.p3.png" $limit
+    checks=$((checks + 1))
+done
+# P = 4 does run binary swap (the stats say which method ran).
+mpirun_ 4 "$app" render "$f" --distributed "${common[@]}" --composite binary-swap --stats >"$dir/p4.json"
+grep -q '"compositing":"binary-swap"' "$dir/p4.json"
+checks=$((checks + 1))
 
 echo "== mpi_test: failures end every rank (no hang)"
 expect_failure() {
@@ -123,10 +149,12 @@ echo "== mpi_test: frame times (bricked, 400x400, --tf-preset shapes --step 0.5,
 for p in 1 2 4; do
     threads=1
     [ "$p" -eq 1 ] && threads=2
-    mpirun_ "$p" "$app" render "$dir/shapes_bricked.vol" --distributed --size 400x400 \
-        --tf-preset shapes --step 0.5 --threads $threads --repeat 3 --stats \
-        >"$dir/stats_p$p.json"
-    cat "$dir/stats_p$p.json"
+    for m in "${methods[@]}"; do
+        mpirun_ "$p" "$app" render "$dir/shapes_bricked.vol" --distributed --size 400x400 \
+            --tf-preset shapes --step 0.5 --threads $threads --repeat 3 --stats \
+            --composite "$m" >"$dir/stats_p$p.$m.json"
+        cat "$dir/stats_p$p.$m.json"
+    done
 done
 "$app" render "$dir/shapes_bricked.vol" --size 400x400 --tf-preset shapes --step 0.5 \
     --threads 2 --repeat 3 --stats >"$dir/stats_single.json"

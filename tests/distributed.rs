@@ -17,8 +17,10 @@ mod common;
 use common::scenes::tf_points;
 use common::{TempDir, compare_images, phantom};
 use glam::{UVec3, Vec3};
+use raycaster::distributed::exchange::simulate;
 use raycaster::distributed::{
-    CellWeights, PartFile, Partition, ReadPolicy, occupancy_weights, render_in_process,
+    CellWeights, CompositeMethod, PartFile, Partition, ReadPolicy, occupancy_weights,
+    render_in_process,
 };
 use raycaster::format::samples::{self, Endian};
 use raycaster::format::vol::{self, VolLayout};
@@ -167,6 +169,7 @@ fn agree_with_single_process(path: &std::path::Path, what: &str) {
     let mut identical = 0;
     let mut total = 0;
     let mut ert_worst = f64::INFINITY;
+    let (mut swap_identical, mut swap_total) = (0, 0);
     for parts in 1..=4 {
         let partition = Partition::kd(
             grid.dims,
@@ -182,6 +185,29 @@ fn agree_with_single_process(path: &std::path::Path, what: &str) {
                     .unwrap_or_else(|e| panic!("{what} {parts} parts {mode_name} {cam_name}: {e}"));
                 let d = compare_images(&want.rgb, &got.rgb, MAX_LEVELS);
                 let label = format!("{what}, {parts} parts, {mode_name}, {cam_name}: {d}");
+                // Direct send and binary swap over the same parts, P ranks
+                // simulated: direct send is the gather's arithmetic
+                // (identical); binary swap groups the merges as a tree
+                // (f32 rounding, ERT's test on a sub-tree's opacity).
+                for method in [CompositeMethod::DirectSend, CompositeMethod::BinarySwap] {
+                    let sim = simulate(
+                        method,
+                        &got.compositor,
+                        &partition,
+                        &camera,
+                        &grid,
+                        &got.parts,
+                    )
+                    .unwrap();
+                    let e = compare_images(&got.rgb, &sim.rgb, 3);
+                    if sim.method == CompositeMethod::DirectSend {
+                        assert_eq!(sim.rgb, got.rgb, "{label}: {method:?}");
+                    } else {
+                        assert!(e.over == 0, "{label}: binary swap: {e}");
+                        swap_total += 1;
+                        swap_identical += usize::from(e.max == 0);
+                    }
+                }
                 // DVR with ERT: a part behind another starts its rays at
                 // A = 0 and stops them later than one process would; the
                 // difference is bounded by what the threshold leaves (1% of
@@ -203,7 +229,8 @@ fn agree_with_single_process(path: &std::path::Path, what: &str) {
         }
     }
     println!(
-        "{what}: {identical}/{total} identical; worst {}; DVR with ERT: worst {ert_worst:.1} dB",
+        "{what}: {identical}/{total} identical; worst {}; DVR with ERT: worst {ert_worst:.1} dB; \
+         binary swap identical to the gather in {swap_identical}/{swap_total}",
         worst.2
     );
 }

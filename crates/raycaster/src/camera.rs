@@ -99,6 +99,41 @@ impl PixelRect {
     pub fn contains(&self, x: u32, y: u32) -> bool {
         x >= self.x0 && x < self.x1 && y >= self.y0 && y < self.y1
     }
+
+    /// True when it holds no pixel.
+    pub fn is_empty(&self) -> bool {
+        self.x0 >= self.x1 || self.y0 >= self.y1
+    }
+
+    /// The pixels both hold (the default, empty rectangle when none).
+    pub fn intersect(&self, other: &PixelRect) -> PixelRect {
+        let r = PixelRect {
+            x0: self.x0.max(other.x0),
+            y0: self.y0.max(other.y0),
+            x1: self.x1.min(other.x1),
+            y1: self.y1.min(other.y1),
+        };
+        if r.is_empty() {
+            PixelRect::default()
+        } else {
+            r
+        }
+    }
+
+    /// The smallest rectangle holding both (an empty one adds nothing).
+    pub fn bounding(&self, other: &PixelRect) -> PixelRect {
+        match (self.is_empty(), other.is_empty()) {
+            (true, true) => PixelRect::default(),
+            (true, false) => *other,
+            (false, true) => *self,
+            (false, false) => PixelRect {
+                x0: self.x0.min(other.x0),
+                y0: self.y0.min(other.y0),
+                x1: self.x1.max(other.x1),
+                y1: self.y1.max(other.y1),
+            },
+        }
+    }
 }
 
 impl Camera {

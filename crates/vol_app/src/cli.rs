@@ -520,6 +520,21 @@ pub struct RenderArgs {
         requires = "distributed"
     )]
     pub distributed_read: raycaster::distributed::ReadPolicy,
+    /// With --distributed: how the ranks' partial images are composited.
+    /// gather: all to rank 0, which merges them; direct-send: each rank
+    /// owns a band of rows and merges the fragments the others send it,
+    /// rank 0 gathers the finished bands; binary-swap: log2(P) pairwise
+    /// exchanges of image halves along the k-d tree (P a power of two,
+    /// otherwise direct send). Default direct-send: of direct send and
+    /// binary swap the faster at P = 4 in the README's measurements, and
+    /// it works for any P.
+    #[arg(
+        long,
+        value_name = "HOW",
+        default_value = "direct-send",
+        requires = "distributed"
+    )]
+    pub composite: raycaster::distributed::CompositeMethod,
     /// How to read a headerless file.
     #[command(flatten)]
     pub raw: RawArgs,

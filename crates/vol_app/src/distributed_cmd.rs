@@ -5,10 +5,18 @@
 //! region per rank, balanced by voxel count: the occupancy of the
 //! macrocells would need the whole file), reads its region and ghost layer
 //! ([`raycaster::distributed`]), and renders it into a partial image of
-//! fragments. The partial images are gathered to rank 0, which composites
-//! them in visibility order and writes the PNG and the `--stats` object
-//! (with `ranks`, `rank_ms`, the bytes each rank read and the bytes
-//! exchanged per frame).
+//! fragments. `--composite` says how the partial images become the frame
+//! ([`raycaster::distributed::exchange`] computes who sends what to whom
+//! from an all-gather of the parts' screen rectangles; this module moves
+//! the bytes): `gather` (all to rank 0, which merges them in visibility
+//! order), `direct-send` (an all-to-all-v of each rank's fragments to the
+//! owners of P bands of rows, which merge them; the finished bands
+//! gathered to rank 0 as RGB) or `binary-swap` (log₂ P rounds of
+//! send-receive with the partner across a split of the k-d tree; the
+//! finished pieces gathered as RGB; direct send when P is not a power of
+//! two). Rank 0 writes the PNG and the `--stats` object (with `ranks`,
+//! `rank_ms`, the bytes each rank read, the compositing time and the bytes
+//! and messages each rank sends and receives per frame).
 //!
 //! No rank may wait for one that failed: opening is followed by an
 //! all-reduce of an "ok" flag, so when any rank cannot open its part (a
@@ -35,12 +43,15 @@ mod transport {
     use std::time::Instant;
 
     use mpi::collective::SystemOperation;
-    use mpi::datatype::PartitionMut;
+    use mpi::datatype::{Partition as Parts, PartitionMut};
+    use mpi::topology::SimpleCommunicator;
     use mpi::traits::*;
     use serde::Serialize;
 
+    use raycaster::camera::PixelRect;
     use raycaster::distributed::{
-        self, CellWeights, PartFile, PartRenderer, PartScene, PartialImage, Partition,
+        self, BinarySwap, CellWeights, CompositeMethod, CompositePlan, Compositor, PartFile,
+        PartRenderer, PartScene, PartialImage, Partition,
     };
     use raycaster::prelude::*;
 
@@ -71,12 +82,30 @@ mod transport {
         rank_ms: Vec<f64>,
         /// Per rank, the bytes read from the file.
         rank_bytes_read: Vec<u64>,
-        /// Bytes of partial images sent to rank 0 per frame (all ranks).
+        /// Bytes all ranks send per frame (partial images, RGB pieces).
         bytes_exchanged: u64,
-        /// Compositing on rank 0, median (ms; part of `frame_ms`).
+        /// Compositing on rank 0, median (ms; part of `frame_ms`): from
+        /// the moment every rank has rendered to the frame on rank 0,
+        /// the exchanges and merges included.
         composite_ms_median: f64,
-        /// How partial images travel: "gather" (all to rank 0).
+        /// Per rank, the median time from the end of rendering to the end
+        /// of its part in compositing.
+        rank_composite_ms: Vec<f64>,
+        /// Per rank, bytes sent per frame (partial images as 4-byte floats,
+        /// 24 bytes a pixel plus a 24-byte header a message; final pieces
+        /// as RGB, 3 bytes a pixel; nothing to itself).
+        rank_bytes_sent: Vec<u64>,
+        /// Per rank, bytes received per frame.
+        rank_bytes_received: Vec<u64>,
+        /// Per rank, messages sent per frame (besides the all-gather of
+        /// the parts' screen rectangles, 16 bytes a rank).
+        rank_messages_sent: Vec<u64>,
+        /// How partial images travel: "gather" (all to rank 0),
+        /// "direct-send" (to band owners), "binary-swap".
         compositing: &'static str,
+        /// The `--composite` asked for (binary swap falls back to direct
+        /// send when the rank count is not a power of two).
+        composite_requested: &'static str,
     }
 
     /// What a rank holds after opening its part.
@@ -194,19 +223,26 @@ mod transport {
         };
         let load_ms = ms(load_start.elapsed());
         let compositor = distributed::compositor(&tf, &options, sample);
-        let order = distributed::visibility_order(&partition, &camera, &grid);
+        let ctx = Ctx {
+            world: &world,
+            rank,
+            ranks,
+            compositor: &compositor,
+        };
 
         let frames = if args.repeat == 1 { 1 } else { args.repeat + 1 };
         let mut frame_ms = Vec::new();
-        let mut composite_ms = Vec::new();
-        let mut rank_ms: Vec<Vec<f64>> = vec![Vec::new(); ranks];
+        let mut my_render_ms = Vec::new();
+        let mut my_composite_ms = Vec::new();
         let mut last = None;
-        let mut exchanged = 0u64;
+        let mut traffic = [0u64; 3];
         let mut samples = 0u64;
+        let mut method = args.composite;
         for n in 0..frames {
             world.barrier();
             let start = Instant::now();
             let image = renderer.render(&part, &camera, &tf, &options);
+            // Also the point where every rank has finished rendering.
             if !all_ok(&world, image.is_ok()) {
                 return Err(match image {
                     Err(e) => e.into(),
@@ -216,64 +252,52 @@ mod transport {
             let Ok(image) = image else {
                 return Err("unreachable: every rank rendered".into());
             };
-            let sent = image.encode();
-            let render_ms = ms(image.time);
+            let composite_start = Instant::now();
+            let (rgb, sent) = composite(&ctx, args.composite, &partition, &camera, &grid, &image)?;
+            let composite_ms = ms(composite_start.elapsed());
+            let elapsed = ms(start.elapsed());
+            let timed = frames == 1 || n > 0;
+            if timed {
+                my_render_ms.push(ms(image.time));
+                my_composite_ms.push(composite_ms);
+                if rank == 0 {
+                    frame_ms.push(elapsed);
+                }
+            }
+            (method, traffic) = sent;
             let mut all_samples = 0u64;
             world.all_reduce_into(&image.samples, &mut all_samples, SystemOperation::sum());
-            let timed = frames == 1 || n > 0;
-            if rank == 0 {
-                let mut counts = vec![0i32; ranks];
-                root.gather_into_root(&(sent.len() as i32), &mut counts[..]);
-                let mut times = vec![0f64; ranks];
-                root.gather_into_root(&render_ms, &mut times[..]);
-                let displs: Vec<i32> = counts
-                    .iter()
-                    .scan(0i32, |at, &c| {
-                        let d = *at;
-                        *at += c;
-                        Some(d)
-                    })
-                    .collect();
-                let total: usize = counts.iter().map(|&c| c as usize).sum();
-                let mut all = vec![0f32; total];
-                {
-                    let mut into = PartitionMut::new(&mut all[..], &counts[..], &displs[..]);
-                    root.gather_varcount_into_root(&sent[..], &mut into);
-                }
-                let composite_start = Instant::now();
-                let images = (0..ranks)
-                    .map(|r| {
-                        let at = displs[r] as usize;
-                        PartialImage::decode(&all[at..at + counts[r] as usize])
-                    })
-                    .collect::<Result<Vec<_>, _>>()?;
-                let rgb = compositor.composite(order.iter().map(|&i| &images[i]))?;
-                if timed {
-                    composite_ms.push(ms(composite_start.elapsed()));
-                    frame_ms.push(ms(start.elapsed()));
-                    for (r, t) in times.into_iter().enumerate() {
-                        rank_ms[r].push(t);
-                    }
-                }
-                exchanged = 4 * total as u64;
-                samples = all_samples;
-                last = Some(rgb);
-            } else {
-                root.gather_into(&(sent.len() as i32));
-                root.gather_into(&render_ms);
-                root.gather_varcount_into(&sent[..]);
-            }
+            samples = all_samples;
+            last = rgb;
         }
-        let mut read = vec![0u64; ranks];
+        // Per rank: the bytes read, the median render and compositing
+        // times, and the last frame's traffic.
+        let mine = [
+            bytes_read as f64,
+            median(&my_render_ms),
+            median(&my_composite_ms),
+            traffic[0] as f64,
+            traffic[1] as f64,
+            traffic[2] as f64,
+        ];
+        let mut all = vec![0f64; 6 * ranks];
         if rank == 0 {
-            root.gather_into_root(&bytes_read, &mut read[..]);
+            root.gather_into_root(&mine[..], &mut all[..]);
         } else {
-            root.gather_into(&bytes_read);
+            root.gather_into(&mine[..]);
             return Ok(());
         }
-        let Some((width, height, rgb)) = last else {
+        let column = |c: usize| -> Vec<f64> { all.chunks_exact(6).map(|r| r[c]).collect() };
+        let whole = |c: usize| -> Vec<u64> { column(c).into_iter().map(|v| v as u64).collect() };
+        let read = whole(0);
+        let rank_ms = column(1);
+        let rank_composite_ms = column(2);
+        let (rank_bytes_sent, rank_bytes_received, rank_messages_sent) =
+            (whole(3), whole(4), whole(5));
+        let Some(rgb) = last else {
             return Err("no frame was rendered".into());
         };
+        let (width, height) = (camera.width, camera.height);
         let out = match (&args.out, args.stats) {
             (Some(p), _) => Some(p.clone()),
             (None, false) => Some("out.png".into()),
@@ -301,11 +325,16 @@ mod transport {
                 samples,
                 peak_rss_mb: peak_rss_mb(),
                 ranks,
-                rank_ms: rank_ms.iter().map(|t| median(t)).collect(),
+                rank_ms,
                 rank_bytes_read: read,
-                bytes_exchanged: exchanged,
-                composite_ms_median: median(&composite_ms),
-                compositing: "gather",
+                bytes_exchanged: rank_bytes_sent.iter().sum(),
+                composite_ms_median: rank_composite_ms[0],
+                rank_composite_ms,
+                rank_bytes_sent,
+                rank_bytes_received,
+                rank_messages_sent,
+                compositing: method.name(),
+                composite_requested: args.composite.name(),
             })?;
         } else if let Some(path) = &out {
             eprintln!(
@@ -315,5 +344,236 @@ mod transport {
             );
         }
         Ok(())
+    }
+
+    /// What every compositing step needs.
+    struct Ctx<'a> {
+        world: &'a SimpleCommunicator,
+        rank: usize,
+        ranks: usize,
+        compositor: &'a Compositor,
+    }
+
+    /// This rank's traffic in a frame: bytes sent, bytes received,
+    /// messages sent.
+    type Sent = (CompositeMethod, [u64; 3]);
+
+    /// Composites the frame by `method` from this rank's `image`: the RGB
+    /// frame on rank 0 (`None` elsewhere) and what this rank sent.
+    fn composite(
+        ctx: &Ctx<'_>,
+        method: CompositeMethod,
+        partition: &Partition,
+        camera: &Camera,
+        grid: &Grid,
+        image: &PartialImage,
+    ) -> Result<(Option<Vec<u8>>, Sent), Error> {
+        let (world, rank, ranks) = (ctx.world, ctx.rank, ctx.ranks);
+        // Every rank's screen rectangle: from them (and the tree and the
+        // camera, which every rank has) each rank computes the whole
+        // exchange, every message's size included.
+        let r = image.rect;
+        let mut all = vec![0u32; 4 * ranks];
+        world.all_gather_into(&[r.x0, r.y0, r.x1, r.y1][..], &mut all[..]);
+        let rects: Vec<PixelRect> = all
+            .chunks_exact(4)
+            .map(|c| PixelRect {
+                x0: c[0],
+                y0: c[1],
+                x1: c[2],
+                y1: c[3],
+            })
+            .collect();
+        let plan = CompositePlan::new(method, partition, camera, grid, &rects)?;
+        let mut traffic = [0u64; 3];
+        let empty = image.crop(&PixelRect::default());
+        let (width, height) = (image.width, image.height);
+        let piece = match &plan {
+            CompositePlan::Gather { order } => {
+                let root = world.process_at_rank(0);
+                let sent = image.encode();
+                if rank != 0 {
+                    root.gather_varcount_into(&sent[..]);
+                    traffic = [4 * sent.len() as u64, 0, 1];
+                    return Ok((None, (plan.method(), traffic)));
+                }
+                let counts: Vec<i32> = rects
+                    .iter()
+                    .map(|r| PartialImage::encoded_len(r) as i32)
+                    .collect();
+                let displs = offsets(&counts);
+                let total: usize = counts.iter().map(|&c| c as usize).sum();
+                let mut all = vec![0f32; total];
+                {
+                    let mut into = PartitionMut::new(&mut all[..], &counts[..], &displs[..]);
+                    root.gather_varcount_into_root(&sent[..], &mut into);
+                }
+                traffic[1] = 4 * (total - sent.len()) as u64;
+                let images = (0..ranks)
+                    .map(|r| {
+                        let at = displs[r] as usize;
+                        PartialImage::decode(&all[at..at + counts[r] as usize])
+                    })
+                    .collect::<Result<Vec<_>, _>>()?;
+                let (_, _, rgb) = ctx
+                    .compositor
+                    .composite(order.iter().map(|&i| &images[i]))?;
+                return Ok((Some(rgb), (plan.method(), traffic)));
+            }
+            CompositePlan::DirectSend { order, bands } => {
+                let band = bands.band(rank);
+                // To each owner, the part of this image in its band; from
+                // each rank, the part of its image in this band (nothing
+                // to or from itself, nothing for an empty rectangle).
+                let send_counts: Vec<i32> = bands
+                    .bands()
+                    .iter()
+                    .enumerate()
+                    .map(|(o, b)| wire_len(o == rank, &image.rect.intersect(b)))
+                    .collect();
+                let recv_rects: Vec<PixelRect> = rects.iter().map(|r| r.intersect(&band)).collect();
+                let recv_counts: Vec<i32> = recv_rects
+                    .iter()
+                    .enumerate()
+                    .map(|(s, r)| wire_len(s == rank, r))
+                    .collect();
+                let mut send = Vec::with_capacity(send_counts.iter().map(|&c| c as usize).sum());
+                for (b, &c) in bands.bands().iter().zip(&send_counts) {
+                    if c > 0 {
+                        image.encode_crop_into(b, &mut send);
+                    }
+                }
+                let mut recv = vec![0f32; recv_counts.iter().map(|&c| c as usize).sum()];
+                let (send_displs, recv_displs) = (offsets(&send_counts), offsets(&recv_counts));
+                {
+                    let out = Parts::new(&send[..], &send_counts[..], &send_displs[..]);
+                    let mut into =
+                        PartitionMut::new(&mut recv[..], &recv_counts[..], &recv_displs[..]);
+                    world.all_to_all_varcount_into(&out, &mut into);
+                }
+                traffic = [
+                    4 * send.len() as u64,
+                    4 * recv.len() as u64,
+                    send_counts.iter().filter(|&&c| c > 0).count() as u64,
+                ];
+                // Its own part is merged from its image (merge_over reads
+                // only the band).
+                let got = (0..ranks)
+                    .map(|s| {
+                        if s == rank || recv_counts[s] == 0 {
+                            Ok(empty.clone())
+                        } else {
+                            let at = recv_displs[s] as usize;
+                            PartialImage::decode(&recv[at..at + recv_counts[s] as usize])
+                        }
+                    })
+                    .collect::<Result<Vec<_>, _>>()?;
+                let part = |i: usize| if i == rank { image } else { &got[i] };
+                let merged = ctx.compositor.merge_over(
+                    band,
+                    width,
+                    height,
+                    order.iter().map(|&i| part(i)),
+                )?;
+                ctx.compositor.resolve_rect(&merged, band)
+            }
+            CompositePlan::BinarySwap(swap) => {
+                let mut held = std::borrow::Cow::Borrowed(image);
+                for (level, round) in swap.rounds(rank).iter().enumerate() {
+                    let partner = world.process_at_rank(round.partner as i32);
+                    let tag = level as i32;
+                    let send = (!round.send.is_empty()).then(|| {
+                        let mut out = Vec::new();
+                        held.encode_crop_into(&round.send, &mut out);
+                        out
+                    });
+                    let mut recv = vec![0f32; wire_len(false, &round.receive) as usize];
+                    match (&send, recv.is_empty()) {
+                        (Some(send), false) => {
+                            mpi::point_to_point::send_receive_into_with_tags(
+                                &send[..],
+                                &partner,
+                                tag,
+                                &mut recv[..],
+                                &partner,
+                                tag,
+                            );
+                        }
+                        (Some(send), true) => partner.send_with_tag(&send[..], tag),
+                        (None, false) => {
+                            partner.receive_into_with_tag(&mut recv[..], tag);
+                        }
+                        (None, true) => {}
+                    }
+                    if let Some(send) = &send {
+                        traffic[0] += 4 * send.len() as u64;
+                        traffic[2] += 1;
+                    }
+                    traffic[1] += 4 * recv.len() as u64;
+                    let incoming = if recv.is_empty() {
+                        empty.clone()
+                    } else {
+                        PartialImage::decode(&recv)?
+                    };
+                    held = std::borrow::Cow::Owned(BinarySwap::step(
+                        ctx.compositor,
+                        round,
+                        &held,
+                        &incoming,
+                    )?);
+                }
+                ctx.compositor.resolve_rect(&held, swap.final_region(rank))
+            }
+        };
+        // The finished pieces (RGB) to rank 0.
+        let regions = plan.final_regions().unwrap_or(&[]);
+        let root = world.process_at_rank(0);
+        if rank != 0 {
+            root.gather_varcount_into(&piece[..]);
+            if !piece.is_empty() {
+                traffic[0] += piece.len() as u64;
+                traffic[2] += 1;
+            }
+            return Ok((None, (plan.method(), traffic)));
+        }
+        let counts: Vec<i32> = regions.iter().map(|r| 3 * r.area() as i32).collect();
+        let displs = offsets(&counts);
+        let mut all = vec![0u8; counts.iter().map(|&c| c as usize).sum()];
+        {
+            let mut into = PartitionMut::new(&mut all[..], &counts[..], &displs[..]);
+            root.gather_varcount_into_root(&piece[..], &mut into);
+        }
+        traffic[1] += (all.len() - piece.len()) as u64;
+        let rgb = ctx.compositor.assemble(
+            width,
+            height,
+            regions.iter().enumerate().map(|(r, region)| {
+                let at = displs[r] as usize;
+                (*region, &all[at..at + counts[r] as usize])
+            }),
+        )?;
+        Ok((Some(rgb), (plan.method(), traffic)))
+    }
+
+    /// Floats on the wire for a partial image of `rect` (none to itself or
+    /// for an empty rectangle).
+    fn wire_len(to_self: bool, rect: &PixelRect) -> i32 {
+        if to_self || rect.is_empty() {
+            0
+        } else {
+            PartialImage::encoded_len(rect) as i32
+        }
+    }
+
+    /// Displacements of consecutive blocks of `counts`.
+    fn offsets(counts: &[i32]) -> Vec<i32> {
+        counts
+            .iter()
+            .scan(0i32, |at, &c| {
+                let d = *at;
+                *at += c;
+                Some(d)
+            })
+            .collect()
     }
 }

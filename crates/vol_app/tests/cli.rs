@@ -865,7 +865,7 @@ fn metaballs_render_from_points_files_and_volumes() {
 }
 
 /// Without the `mpi` feature `--distributed` is one line saying how to get
-/// it; `--distributed-read` needs `--distributed`.
+/// it; `--distributed-read` and `--composite` need `--distributed`.
 #[test]
 #[cfg(not(feature = "mpi"))]
 fn distributed_without_the_mpi_feature_says_how_to_build_it() {
@@ -874,5 +874,7 @@ fn distributed_without_the_mpi_feature_says_how_to_build_it() {
     let out = output(vol_app_on("render", &file).arg("--distributed"));
     assert_one_line_error(&out, "--features mpi");
     let out = output(vol_app_on("render", &file).args(["--distributed-read", "whole"]));
+    assert!(!out.status.success());
+    let out = output(vol_app_on("render", &file).args(["--composite", "binary-swap"]));
     assert!(!out.status.success());
 }

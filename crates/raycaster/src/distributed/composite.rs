@@ -21,6 +21,7 @@
 use glam::{Vec3, Vec4};
 
 use super::render::PartialImage;
+use crate::camera::PixelRect;
 use crate::error::{Error, Result};
 use crate::integrator::{AvgState, Fragment, MinipState, MipState, RenderMode};
 use crate::render::film::to_bytes;
@@ -85,6 +86,123 @@ impl Compositor {
             RenderMode::Avg => AvgState::colour(f.value as f64, f.count as u64, self.avg_norm),
             _ => Vec4::ZERO,
         }
+    }
+
+    /// The RGB8 of a pixel no part covers (the background).
+    pub fn empty_pixel(&self) -> [u8; 3] {
+        self.pixel(&Fragment::default())
+    }
+
+    /// The RGB8 of a fully merged fragment, over the background.
+    #[inline]
+    pub fn pixel(&self, f: &Fragment) -> [u8; 3] {
+        let c = self.resolve(f);
+        to_bytes(c.truncate() + (1.0 - c.w) * self.background)
+    }
+
+    /// Merges `parts`, given front to back, over the pixels of `rect`
+    /// (the parts may hold more or fewer pixels; those outside `rect` are
+    /// ignored), starting from empty fragments: the same arithmetic, pixel
+    /// by pixel, as [`Compositor::composite`] over the same parts.
+    pub fn merge_over<'a>(
+        &self,
+        rect: PixelRect,
+        width: u32,
+        height: u32,
+        parts: impl IntoIterator<Item = &'a PartialImage>,
+    ) -> Result<PartialImage> {
+        let mut acc = vec![Fragment::default(); rect.area() as usize];
+        let rw = (rect.x1 - rect.x0) as usize;
+        let mut samples = 0;
+        for part in parts {
+            if (part.width, part.height) != (width, height) {
+                return Err(Error::option(
+                    "partial image",
+                    format!(
+                        "{}x{} does not match {width}x{height}",
+                        part.width, part.height
+                    ),
+                ));
+            }
+            samples += part.samples;
+            let r = part.rect.intersect(&rect);
+            let w = (r.x1 - r.x0) as usize;
+            let pw = (part.rect.x1 - part.rect.x0) as usize;
+            for j in r.y0..r.y1 {
+                let src = (j - part.rect.y0) as usize * pw + (r.x0 - part.rect.x0) as usize;
+                let dst = (j - rect.y0) as usize * rw + (r.x0 - rect.x0) as usize;
+                for (a, f) in acc[dst..dst + w]
+                    .iter_mut()
+                    .zip(&part.fragments[src..src + w])
+                {
+                    self.merge(a, f);
+                }
+            }
+        }
+        Ok(PartialImage {
+            width,
+            height,
+            rect,
+            fragments: acc,
+            samples,
+            time: std::time::Duration::ZERO,
+        })
+    }
+
+    /// The RGB8 of the pixels of `rect` (row-major) from the merged
+    /// `image`; pixels of `rect` it does not hold are the background.
+    pub fn resolve_rect(&self, image: &PartialImage, rect: PixelRect) -> Vec<u8> {
+        let mut rgb = Vec::with_capacity(rect.area() as usize * 3);
+        let empty = self.empty_pixel();
+        let held = image.rect.intersect(&rect);
+        let iw = (image.rect.x1 - image.rect.x0) as usize;
+        for y in rect.y0..rect.y1 {
+            if held.is_empty() || y < held.y0 || y >= held.y1 {
+                for _ in rect.x0..rect.x1 {
+                    rgb.extend(empty);
+                }
+                continue;
+            }
+            for _ in rect.x0..held.x0 {
+                rgb.extend(empty);
+            }
+            let at = (y - image.rect.y0) as usize * iw + (held.x0 - image.rect.x0) as usize;
+            for f in &image.fragments[at..at + (held.x1 - held.x0) as usize] {
+                rgb.extend(self.pixel(f));
+            }
+            for _ in held.x1..rect.x1 {
+                rgb.extend(empty);
+            }
+        }
+        rgb
+    }
+
+    /// The RGB8 frame from pieces `(rect, rgb over rect)` that do not
+    /// overlap; pixels no piece covers are the background.
+    pub fn assemble<'a>(
+        &self,
+        width: u32,
+        height: u32,
+        pieces: impl IntoIterator<Item = (PixelRect, &'a [u8])>,
+    ) -> Result<Vec<u8>> {
+        let mut rgb = self.empty_pixel().repeat(width as usize * height as usize);
+        for (r, piece) in pieces {
+            if r.is_empty() {
+                continue;
+            }
+            if r.x1 > width || r.y1 > height || piece.len() as u64 != 3 * r.area() {
+                return Err(Error::option(
+                    "composited piece",
+                    format!("{r:?} with {} bytes in {width}x{height}", piece.len()),
+                ));
+            }
+            let w = 3 * (r.x1 - r.x0) as usize;
+            for (row, y) in (r.y0..r.y1).enumerate() {
+                let o = 3 * (y as usize * width as usize + r.x0 as usize);
+                rgb[o..o + w].copy_from_slice(&piece[row * w..row * w + w]);
+            }
+        }
+        Ok(rgb)
     }
 
     /// Composites `parts`, given front to back, into the RGB8 frame.

@@ -16,20 +16,24 @@
 //!    background.
 //! 4. **Compositing** ([`composite`]): the parts' images merged in the
 //!    regions' visibility order ([`Partition::visibility_order`]), then the
-//!    background.
+//!    background; [`exchange`] says how the images travel between ranks
+//!    for it (gather to rank 0, direct send to band owners, binary swap)
+//!    and simulates P ranks in one process.
 //!
 //! [`render_in_process`] runs all four in one process, part after part: the
 //! reference the tests compare with a single-process render, and what a
 //! transport's driver does with the parts spread over ranks.
 
 pub mod composite;
+pub mod exchange;
 pub mod partition;
 pub mod read;
 pub mod render;
 
 pub use crate::integrator::Fragment;
 pub use composite::Compositor;
-pub use partition::{CellWeights, Partition, Region};
+pub use exchange::{BinarySwap, CompositeMethod, CompositePlan, DirectSend, SwapRound, Traffic};
+pub use partition::{CellWeights, Partition, Region, SwapPair};
 pub use read::{PartFile, PartVolume, ReadPolicy, extract};
 pub use render::{PartRenderer, PartScene, PartialImage};
 
@@ -130,6 +134,8 @@ pub struct InProcessFrame {
     pub samples: Vec<u64>,
     /// Each part's partial image.
     pub parts: Vec<PartialImage>,
+    /// The compositor that merged them.
+    pub compositor: Compositor,
 }
 
 /// Splits `file` into `partition`'s regions, reads and renders each part
@@ -164,8 +170,8 @@ pub fn render_in_process(
     }
     let sample = parts[0].scene.volume().sample_type();
     let order = visibility_order(partition, camera, &file.grid());
-    let (width, height, rgb) =
-        compositor(tf, options, sample).composite(order.iter().map(|&i| &images[i]))?;
+    let compositor = compositor(tf, options, sample);
+    let (width, height, rgb) = compositor.composite(order.iter().map(|&i| &images[i]))?;
     Ok(InProcessFrame {
         width,
         height,
@@ -173,6 +179,7 @@ pub fn render_in_process(
         bytes_read,
         samples: images.iter().map(|i| i.samples).collect(),
         parts: images,
+        compositor,
     })
 }
 
@@ -183,10 +190,21 @@ pub fn visibility_order(
     camera: &Camera,
     grid: &crate::volume::Grid,
 ) -> Vec<usize> {
+    let (projection, view) = view_of(camera, grid);
+    partition.visibility_order(projection, view)
+}
+
+/// What decides the visibility order of k-d regions for `camera`: the
+/// projection and the eye (perspective) or the view direction
+/// (orthographic) in the voxel space of `grid`.
+pub fn view_of(
+    camera: &Camera,
+    grid: &crate::volume::Grid,
+) -> (crate::camera::Projection, glam::Vec3) {
     use crate::camera::Projection;
     let view = match camera.projection {
         Projection::Perspective => grid.world_to_voxel(camera.position),
         Projection::Orthographic => (camera.target - camera.position) / grid.spacing,
     };
-    partition.visibility_order(camera.projection, view)
+    (camera.projection, view)
 }

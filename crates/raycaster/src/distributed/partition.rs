@@ -387,10 +387,7 @@ impl Partition {
                     lower,
                     upper,
                 } => {
-                    let lower_first = match projection {
-                        Projection::Perspective => view[axis] < plane as f32,
-                        Projection::Orthographic => view[axis] >= 0.0,
-                    };
+                    let lower_first = lower_first(projection, view, axis, plane);
                     // Pushed in reverse: the front child is popped first.
                     if lower_first {
                         stack.extend([upper, lower]);
@@ -401,6 +398,83 @@ impl Partition {
             }
         }
         order
+    }
+
+    /// Binary swap's pairings for a camera whose eye (perspective) or view
+    /// direction (orthographic) is `view`: for each region, one
+    /// [`SwapPair`] a round, from the deepest split of the k-d tree up to
+    /// the root. At a split whose two sides hold `n` regions each (listed
+    /// in the tree's order), the `i`-th region of one side pairs with the
+    /// `i`-th of the other, so after the rounds below it both hold the same
+    /// part of the screen. `None` unless every split gives both sides the
+    /// same number of regions (the balanced tree of `2^k` regions).
+    pub fn swap_schedule(&self, projection: Projection, view: Vec3) -> Option<Vec<Vec<SwapPair>>> {
+        let mut schedule = vec![Vec::new(); self.regions.len()];
+        self.swap_subtree(0, projection, view, &mut schedule)?;
+        Some(schedule)
+    }
+
+    /// The regions of the subtree at `node`, in the tree's order; pushes
+    /// the rounds of its splits (deepest first) onto `schedule`.
+    fn swap_subtree(
+        &self,
+        node: usize,
+        projection: Projection,
+        view: Vec3,
+        schedule: &mut [Vec<SwapPair>],
+    ) -> Option<Vec<usize>> {
+        match self.nodes[node] {
+            Node::Leaf(r) => Some(vec![r]),
+            Node::Split {
+                axis,
+                plane,
+                lower,
+                upper,
+            } => {
+                let low = self.swap_subtree(lower, projection, view, schedule)?;
+                let up = self.swap_subtree(upper, projection, view, schedule)?;
+                if low.len() != up.len() {
+                    return None;
+                }
+                let lower_front = lower_first(projection, view, axis, plane);
+                for (&l, &u) in low.iter().zip(&up) {
+                    schedule[l].push(SwapPair {
+                        partner: u,
+                        lower: true,
+                        front: lower_front,
+                    });
+                    schedule[u].push(SwapPair {
+                        partner: l,
+                        lower: false,
+                        front: !lower_front,
+                    });
+                }
+                Some(low.into_iter().chain(up).collect())
+            }
+        }
+    }
+}
+
+/// One round of binary swap for one region ([`Partition::swap_schedule`]).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct SwapPair {
+    /// The region on the other side of the round's split.
+    pub partner: usize,
+    /// Whether this region is on the lower side of the split (it keeps the
+    /// first half of the pair's screen region).
+    pub lower: bool,
+    /// Whether this region's side is in front for the camera.
+    pub front: bool,
+}
+
+/// Whether the lower side of the split `axis` at `plane` is in front, for
+/// an eye (perspective) or view direction (orthographic) `view`: for a
+/// perspective camera the eye's side (a correct order for every ray, the
+/// eye inside the volume too).
+fn lower_first(projection: Projection, view: Vec3, axis: usize, plane: u32) -> bool {
+    match projection {
+        Projection::Perspective => view[axis] < plane as f32,
+        Projection::Orthographic => view[axis] >= 0.0,
     }
 }
 

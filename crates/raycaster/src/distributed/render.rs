@@ -104,17 +104,55 @@ impl PartialImage {
         })
     }
 
+    /// The part of the image inside `rect` (its rectangle is the
+    /// intersection, possibly empty), to send to the rank that composites
+    /// `rect`. Samples and time are not kept.
+    pub fn crop(&self, rect: &PixelRect) -> PartialImage {
+        let r = self.rect.intersect(rect);
+        let w = (self.rect.x1 - self.rect.x0) as usize;
+        let mut fragments = Vec::with_capacity(r.area() as usize);
+        for y in r.y0..r.y1 {
+            let o = (y - self.rect.y0) as usize * w + (r.x0 - self.rect.x0) as usize;
+            fragments.extend_from_slice(&self.fragments[o..o + (r.x1 - r.x0) as usize]);
+        }
+        PartialImage {
+            width: self.width,
+            height: self.height,
+            rect: r,
+            fragments,
+            samples: 0,
+            time: Duration::ZERO,
+        }
+    }
+
+    /// The length of [`PartialImage::encode`]'s output for an image of
+    /// `rect`: what a receiver that knows the rectangle expects.
+    pub fn encoded_len(rect: &PixelRect) -> usize {
+        6 + rect.area() as usize * Fragment::FLOATS
+    }
+
     /// The image as floats, to send: width, height, the rectangle, then
     /// [`Fragment::FLOATS`] per pixel (pixel coordinates are exact in f32
     /// below 2²⁴).
     pub fn encode(&self) -> Vec<f32> {
-        let mut out = Vec::with_capacity(6 + self.fragments.len() * Fragment::FLOATS);
-        let r = self.rect;
-        out.extend([self.width, self.height, r.x0, r.y0, r.x1, r.y1].map(|v| v as f32));
-        for f in &self.fragments {
-            f.write(&mut out);
-        }
+        let mut out = Vec::with_capacity(Self::encoded_len(&self.rect));
+        self.encode_crop_into(&self.rect, &mut out);
         out
+    }
+
+    /// Appends the encoding of `self.crop(rect)` to `out` (without making
+    /// the crop).
+    pub fn encode_crop_into(&self, rect: &PixelRect, out: &mut Vec<f32>) {
+        let r = self.rect.intersect(rect);
+        out.reserve(Self::encoded_len(&r));
+        out.extend([self.width, self.height, r.x0, r.y0, r.x1, r.y1].map(|v| v as f32));
+        let w = (self.rect.x1 - self.rect.x0) as usize;
+        for y in r.y0..r.y1 {
+            let o = (y - self.rect.y0) as usize * w + (r.x0 - self.rect.x0) as usize;
+            for f in &self.fragments[o..o + (r.x1 - r.x0) as usize] {
+                f.write(out);
+            }
+        }
     }
 
     /// The image [`PartialImage::encode`] wrote (samples and time are not
