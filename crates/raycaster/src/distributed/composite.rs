@@ -214,34 +214,13 @@ impl Compositor {
             return Err(Error::option("ranks", "nothing to composite"));
         };
         let (width, height) = (first.width, first.height);
-        let mut acc = vec![Fragment::default(); width as usize * height as usize];
-        for part in parts {
-            if (part.width, part.height) != (width, height) {
-                return Err(Error::option(
-                    "partial image",
-                    format!(
-                        "{}x{} does not match {width}x{height}",
-                        part.width, part.height
-                    ),
-                ));
-            }
-            let r = part.rect;
-            let w = (r.x1 - r.x0) as usize;
-            for (row, j) in (r.y0..r.y1).enumerate() {
-                let line = &part.fragments[row * w..row * w + w];
-                let o = j as usize * width as usize + r.x0 as usize;
-                for (a, f) in acc[o..o + w].iter_mut().zip(line) {
-                    self.merge(a, f);
-                }
-            }
-        }
-        let rgb = acc
-            .iter()
-            .flat_map(|f| {
-                let c = self.resolve(f);
-                to_bytes(c.truncate() + (1.0 - c.w) * self.background)
-            })
-            .collect();
-        Ok((width, height, rgb))
+        let full = PixelRect {
+            x0: 0,
+            y0: 0,
+            x1: width,
+            y1: height,
+        };
+        let merged = self.merge_over(full, width, height, parts)?;
+        Ok((width, height, self.resolve_rect(&merged, full)))
     }
 }
