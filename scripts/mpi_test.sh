@@ -14,6 +14,10 @@
 #     what the ERT threshold of 0.99 allows);
 #   - binary swap with P = 3 (not a power of two): falls back to direct
 #     send (the --stats say so) and still matches;
+#   - balancing: occupancy (the default) from a first pass when there is
+#     no macrocell cache (which rank 0 then writes), from the cache after
+#     it, with --no-cache, and --balance voxels, each against the single
+#     process;
 #   - checks that a missing file, and one rank failing to open its part,
 #     end every rank with an error (non-zero exit, no hang: `timeout`);
 #   - times --repeat 3 --stats for P = 1, 2, 4 and each method
@@ -120,6 +124,32 @@ done
 mpirun_ 4 "$app" render "$f" --distributed "${common[@]}" --composite binary-swap --stats >"$dir/p4.json"
 grep -q '"compositing":"binary-swap"' "$dir/p4.json"
 checks=$((checks + 1))
+
+echo "== mpi_test: balancing (occupancy from the cache or a first pass; voxels)"
+f="$dir/shapes_bricked.vol"
+cache="$f.m4.rcidx"
+rm -f "$cache"
+# No cache yet: the ranks' first pass finds the macrocell ranges, rank 0
+# writes the cache, and the next run reads it.
+mpirun_ 2 "$app" render "$f" --distributed "${common[@]}" --mode dvr --ert off \
+    --out "$dir/bal-first.png" --stats >"$dir/bal.json"
+grep -q '"balance_ranges":"first pass"' "$dir/bal.json"
+test -s "$cache"
+"$compare" "$dir/bricked-dvr.single.png" "$dir/bal-first.png" --min-psnr 50
+mpirun_ 4 "$app" render "$f" --distributed "${common[@]}" --mode dvr --ert off \
+    --out "$dir/bal-cache.png" --stats >"$dir/bal.json"
+grep -q '"balance_ranges":"cache"' "$dir/bal.json"
+"$compare" "$dir/bricked-dvr.single.png" "$dir/bal-cache.png" --min-psnr 50
+# --no-cache: the first pass again, and no cache read.
+mpirun_ 3 "$app" render "$f" --distributed "${common[@]}" --mode iso --iso 97 --no-cache \
+    --out "$dir/bal-nocache.png" --stats >"$dir/bal.json"
+grep -q '"balance_ranges":"first pass"' "$dir/bal.json"
+"$compare" "$dir/bricked-iso.single.png" "$dir/bal-nocache.png" --min-psnr 50
+mpirun_ 4 "$app" render "$f" --distributed "${common[@]}" --mode mip --balance voxels \
+    --out "$dir/bal-voxels.png" --stats >"$dir/bal.json"
+grep -q '"balance":"voxels"' "$dir/bal.json"
+"$compare" "$dir/bricked-mip.single.png" "$dir/bal-voxels.png" --min-psnr 50
+checks=$((checks + 4))
 
 echo "== mpi_test: failures end every rank (no hang)"
 expect_failure() {

@@ -17,9 +17,11 @@ mod common;
 use common::scenes::tf_points;
 use common::{TempDir, compare_images, phantom};
 use glam::{UVec3, Vec3};
+use raycaster::accel::MacrocellGrid;
 use raycaster::distributed::exchange::simulate;
 use raycaster::distributed::{
-    CellWeights, CompositeMethod, PartFile, Partition, ReadPolicy, occupancy_weights,
+    CellWeights, CompositeMethod, PartFile, Partition, ReadPolicy, Region, balance_cell,
+    merge_ranges, occupancy_weights, occupancy_weights_of, region_macrocell_ranges,
     render_in_process,
 };
 use raycaster::format::samples::{self, Endian};
@@ -395,6 +397,115 @@ fn occupancy_balancing_renders_the_same_image() {
         let d = compare_images(&want.rgb, &got.rgb, MAX_LEVELS);
         assert!(d.psnr >= MIN_PSNR && d.over == 0, "{d}");
     }
+}
+
+/// The first pass of occupancy balancing without a cache: each part's
+/// macrocell ranges, merged, are the whole volume's grid exactly (so the
+/// partition is the one a single process would make), each part reads
+/// about 1/P of the file, and the grid coarsened to the partition's cells
+/// balances as a grid built with that side does.
+#[test]
+fn parts_macrocell_ranges_merge_into_the_whole_volumes_grid() {
+    let dir = TempDir::new("dist-ranges");
+    let dims = [70u32, 52, 45];
+    let volume = phantom_volume(dims, Vec3::new(1.0, 1.2, 0.9));
+    // Bricks of 16 round a small part's read up to whole bricks.
+    for (name, layout, slack) in [
+        ("linear.vol", VolLayout::Linear, 1.25),
+        ("bricked.vol", VolLayout::Bricked { side: 16 }, 2.0),
+    ] {
+        let path = dir.join(name);
+        vol::write(&path, &volume, layout).unwrap();
+        let file = PartFile::open(&path, ReadPolicy::Part).unwrap();
+        let grid = file.grid();
+        let whole = Scene::new(phantom_volume(dims, grid.spacing));
+        let m = whole.macrocells().cell;
+        let cell = balance_cell(grid.dims);
+        assert_eq!(cell % m, 0);
+        let len = std::fs::metadata(&path).unwrap().len() as f64;
+        for parts in 1..=4usize {
+            let partition = Partition::kd(
+                grid.dims,
+                grid.spacing,
+                parts,
+                &CellWeights::uniform(grid.dims, cell),
+            )
+            .unwrap();
+            let mut merged =
+                vec![(f32::INFINITY, f32::NEG_INFINITY); whole.macrocells().ranges.len()];
+            for region in partition.regions() {
+                let got = region_macrocell_ranges(&file, region, m).unwrap();
+                assert_eq!(got.sample_type, SampleType::U8);
+                let share = got.bytes_read as f64 / (len / parts as f64);
+                assert!(share < slack, "{name}, {parts} parts: {share} of 1/P");
+                merge_ranges(&mut merged, &got.ranges);
+            }
+            assert_eq!(merged, whole.macrocells().ranges, "{name}, {parts} parts");
+        }
+        // Coarsened ranges are the coarse grid's, and balance alike.
+        let tf = tf_points(
+            Interpolation::Step,
+            &[(200.0, [1.0, 0.5, 0.2], 0.7), (255.0, [1.0, 1.0, 1.0], 0.7)],
+        );
+        let options = RenderOptions {
+            shading: false,
+            ..RenderOptions::default()
+        };
+        for k in [2u32, 3] {
+            let coarse = whole.macrocells().coarsened(k);
+            let built = MacrocellGrid::build_any(whole.volume(), m * k, None);
+            assert_eq!((coarse.cell, coarse.count), (built.cell, built.count));
+            assert_eq!(coarse.ranges, built.ranges, "{name}: coarsened by {k}");
+            assert_eq!(coarse.uniform, built.uniform, "{name}: coarsened by {k}");
+            let scene = Scene::with_macrocell(phantom_volume(dims, grid.spacing), m * k);
+            let a = Partition::kd(
+                grid.dims,
+                grid.spacing,
+                3,
+                &occupancy_weights_of(&grid, &coarse, &tf, &options),
+            )
+            .unwrap();
+            let b = Partition::kd(
+                grid.dims,
+                grid.spacing,
+                3,
+                &occupancy_weights(&scene, &tf, &options),
+            )
+            .unwrap();
+            assert_eq!(a.regions(), b.regions());
+        }
+    }
+}
+
+/// A region whose faces are not on macrocell planes cannot give whole
+/// macrocells: an error, not wrong ranges.
+#[test]
+fn region_ranges_need_faces_on_macrocell_planes() {
+    let dir = TempDir::new("dist-ranges-align");
+    let path = dir.join("a.vol");
+    vol::write(
+        &path,
+        &phantom_volume([33, 30, 20], Vec3::ONE),
+        VolLayout::Linear,
+    )
+    .unwrap();
+    let file = PartFile::open(&path, ReadPolicy::Part).unwrap();
+    let region = Region {
+        index: 0,
+        lo: UVec3::ZERO,
+        hi: UVec3::new(17, 29, 19),
+        own_lo: Vec3::NEG_INFINITY,
+        own_hi: Vec3::new(17.0, f32::INFINITY, f32::INFINITY),
+    };
+    let e = region_macrocell_ranges(&file, &region, 4).unwrap_err();
+    assert!(e.to_string().contains("macrocell plane"), "{e}");
+    // On the planes it works.
+    let region = Region {
+        hi: UVec3::new(16, 29, 19),
+        own_hi: Vec3::new(16.0, f32::INFINITY, f32::INFINITY),
+        ..region
+    };
+    assert!(region_macrocell_ranges(&file, &region, 4).is_ok());
 }
 
 #[test]

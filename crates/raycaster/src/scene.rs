@@ -80,60 +80,26 @@ impl Scene {
             CachePolicy::Off => None,
             CachePolicy::Auto => cache_key(path, &opened.info, open, &mut report),
         };
-        let places = match &key {
-            Some(_) => cache_places(path, cell, options.cache_dir.as_deref()),
-            None => Vec::new(),
-        };
-        if let Some(key) = &key {
-            for place in &places {
-                match cache::load(place, key, shape) {
-                    Ok(grid) => {
-                        report.loaded = Some(place.clone());
-                        return Ok(OpenedScene {
-                            scene: Self::from_grid(volume, grid),
-                            info: opened.info,
-                            cache: report,
-                        });
-                    }
-                    Err(CacheMiss::Corrupt(why)) => report.warnings.push(format!(
-                        "{}: ignoring a damaged macrocell cache ({why}); rebuilding it",
-                        place.display()
-                    )),
-                    Err(CacheMiss::Absent | CacheMiss::Stale) => {}
-                }
-            }
+        if let Some(key) = &key
+            && let Some(grid) =
+                find_cached_macrocells(path, key, shape, options.cache_dir.as_deref(), &mut report)
+        {
+            return Ok(OpenedScene {
+                scene: Self::from_grid(volume, grid),
+                info: opened.info,
+                cache: report,
+            });
         }
         let grid = MacrocellGrid::build_any(&volume, cell, options.progress.as_ref());
         if let Some(key) = &key {
-            let mut failures = Vec::new();
-            for place in &places {
-                let made = match place.parent() {
-                    Some(dir) if !dir.as_os_str().is_empty() => {
-                        std::fs::create_dir_all(dir).map_err(|e| format!("{}: {e}", dir.display()))
-                    }
-                    _ => Ok(()),
-                };
-                match made.and_then(|()| {
-                    cache::store(place, key, shape, &grid).map_err(|e| e.to_string())
-                }) {
-                    Ok(()) => {
-                        report.saved = Some(place.clone());
-                        break;
-                    }
-                    Err(e) => failures.push(e),
-                }
-            }
-            if report.saved.is_none() {
-                report.warnings.push(format!(
-                    "{}: could not save the macrocell cache, so the next open reads the whole volume again ({})",
-                    path.display(),
-                    if failures.is_empty() {
-                        "no per-user cache directory".to_string()
-                    } else {
-                        failures.join("; ")
-                    }
-                ));
-            }
+            save_cached_macrocells(
+                path,
+                key,
+                shape,
+                &grid,
+                options.cache_dir.as_deref(),
+                &mut report,
+            );
         }
         Ok(OpenedScene {
             scene: Self::from_grid(volume, grid),
@@ -259,6 +225,72 @@ fn cache_key(
             None
         }
     }
+}
+
+/// The macrocell grid of the volume file `path` (identified by `key`, of
+/// `shape`) from a valid cache in the places [`Scene::open`] looks (next
+/// to the volume, then `dir` or the per-user cache directory), or `None`.
+/// A damaged cache adds a warning to `report`; the one read is noted there.
+pub fn find_cached_macrocells(
+    path: &Path,
+    key: &CacheKey,
+    shape: GridShape,
+    dir: Option<&Path>,
+    report: &mut CacheReport,
+) -> Option<MacrocellGrid> {
+    for place in cache_places(path, shape.cell, dir) {
+        match cache::load(&place, key, shape) {
+            Ok(grid) => {
+                report.loaded = Some(place);
+                return Some(grid);
+            }
+            Err(CacheMiss::Corrupt(why)) => report.warnings.push(format!(
+                "{}: ignoring a damaged macrocell cache ({why}); rebuilding it",
+                place.display()
+            )),
+            Err(CacheMiss::Absent | CacheMiss::Stale) => {}
+        }
+    }
+    None
+}
+
+/// Writes `grid` as the macrocell cache of the volume file `path` in the
+/// first of [`Scene::open`]'s places that takes it; where none does, adds
+/// a warning to `report` (a cache is an optimisation, never an error).
+pub fn save_cached_macrocells(
+    path: &Path,
+    key: &CacheKey,
+    shape: GridShape,
+    grid: &MacrocellGrid,
+    dir: Option<&Path>,
+    report: &mut CacheReport,
+) {
+    let mut failures = Vec::new();
+    for place in cache_places(path, shape.cell, dir) {
+        let made = match place.parent() {
+            Some(dir) if !dir.as_os_str().is_empty() => {
+                std::fs::create_dir_all(dir).map_err(|e| format!("{}: {e}", dir.display()))
+            }
+            _ => Ok(()),
+        };
+        match made.and_then(|()| cache::store(&place, key, shape, grid).map_err(|e| e.to_string()))
+        {
+            Ok(()) => {
+                report.saved = Some(place);
+                return;
+            }
+            Err(e) => failures.push(e),
+        }
+    }
+    report.warnings.push(format!(
+        "{}: could not save the macrocell cache, so the next open reads the whole volume again ({})",
+        path.display(),
+        if failures.is_empty() {
+            "no per-user cache directory".to_string()
+        } else {
+            failures.join("; ")
+        }
+    ));
 }
 
 /// Where the cache of `path` may be, in the order looked in and written:

@@ -520,6 +520,19 @@ pub struct RenderArgs {
         requires = "distributed"
     )]
     pub distributed_read: raycaster::distributed::ReadPolicy,
+    /// With --distributed: what the k-d split of the volume balances.
+    /// occupancy: the macrocells the frame's TF (iso value, clipping)
+    /// leaves occupied, from the volume's macrocell cache (written by the
+    /// first run, or by any open without --no-cache) or else a first pass
+    /// in which each rank reads a voxel-balanced part; voxels: voxel count
+    /// alone, no first pass.
+    #[arg(
+        long,
+        value_name = "WHAT",
+        default_value = "occupancy",
+        requires = "distributed"
+    )]
+    pub balance: raycaster::distributed::Balance,
     /// With --distributed: how the ranks' partial images are composited.
     /// gather: all to rank 0, which merges them; direct-send: each rank
     /// owns a band of rows and merges the fragments the others send it,

@@ -2,10 +2,14 @@
 //! over MPI (`mpirun -n P vol_app render FILE --distributed ...`).
 //!
 //! Every rank reads the file's header, builds the same k-d partition (one
-//! region per rank, balanced by voxel count: the occupancy of the
-//! macrocells would need the whole file), reads its region and ghost layer
+//! region per rank) and reads its region and ghost layer
 //! ([`raycaster::distributed`]), and renders it into a partial image of
-//! fragments. `--composite` says how the partial images become the frame
+//! fragments. `--balance occupancy` (the default) balances the macrocells
+//! the frame leaves occupied: the whole volume's macrocell ranges come
+//! from the volume's cache when every rank finds it, else from a first
+//! pass (each rank reads a voxel-balanced region, builds its macrocells'
+//! ranges, an all-reduce combines them, rank 0 writes the cache);
+//! `--balance voxels` balances voxel count. `--composite` says how the partial images become the frame
 //! ([`raycaster::distributed::exchange`] computes who sends what to whom
 //! from an all-gather of the parts' screen rectangles; this module moves
 //! the bytes): `gather` (all to rank 0, which merges them in visibility
@@ -48,12 +52,14 @@ mod transport {
     use mpi::traits::*;
     use serde::Serialize;
 
+    use raycaster::accel::MacrocellGrid;
     use raycaster::camera::PixelRect;
     use raycaster::distributed::{
-        self, BinarySwap, CellWeights, CompositeMethod, CompositePlan, Compositor, PartFile,
-        PartRenderer, PartScene, PartialImage, Partition,
+        self, Balance, BinarySwap, CellWeights, CompositeMethod, CompositePlan, Compositor,
+        PartFile, PartRenderer, PartScene, PartialImage, Partition,
     };
     use raycaster::prelude::*;
+    use raycaster::scene::CacheReport;
 
     use super::{Error, RenderArgs};
     use crate::render_cmd::{camera_for, ms, render_options, transfer_function};
@@ -80,8 +86,17 @@ mod transport {
         ranks: usize,
         /// Per rank, the median time to render its part (ms).
         rank_ms: Vec<f64>,
-        /// Per rank, the bytes read from the file.
+        /// Per rank, the bytes read from the file for its part.
         rank_bytes_read: Vec<u64>,
+        /// Per rank, the samples its part took (the last frame).
+        rank_samples: Vec<u64>,
+        /// What the partition balances: "occupancy" or "voxels".
+        balance: &'static str,
+        /// Where occupancy balancing found the whole volume's macrocell
+        /// ranges: "cache" or "first pass" ("" for voxels).
+        balance_ranges: &'static str,
+        /// Per rank, the bytes read by the first pass (0 with the cache).
+        rank_bytes_read_balancing: Vec<u64>,
         /// Bytes all ranks send per frame (partial images, RGB pieces).
         bytes_exchanged: u64,
         /// Compositing on rank 0, median (ms; part of `frame_ms`): from
@@ -108,15 +123,9 @@ mod transport {
         composite_requested: &'static str,
     }
 
-    /// What a rank holds after opening its part.
-    struct Opened {
-        file: PartFile,
-        partition: Partition,
-        part: PartScene,
-        bytes_read: u64,
-    }
-
-    fn open(args: &RenderArgs, rank: usize, ranks: usize) -> Result<Opened, Error> {
+    /// Opens the file's header (and checks what `--distributed` cannot
+    /// do), before any collective call.
+    fn open_file(args: &RenderArgs, rank: usize) -> Result<PartFile, Error> {
         let path = args
             .file
             .as_deref()
@@ -136,30 +145,180 @@ mod transport {
             )
             .into());
         }
-        let file = PartFile::open(path, args.distributed_read)?;
-        let grid = file.grid();
-        let partition = Partition::kd(
-            grid.dims,
-            grid.spacing,
-            ranks,
-            &CellWeights::voxels(grid.dims),
-        )?;
-        let region = partition.regions()[rank];
-        // The ghost layer the options need (1 voxel, 2 with gradients).
-        let ghost = distributed::ghost_layer(&RenderOptions {
+        Ok(PartFile::open(path, args.distributed_read)?)
+    }
+
+    /// The ghost layer the options need (1 voxel, 2 with gradients).
+    fn ghost(args: &RenderArgs) -> u32 {
+        distributed::ghost_layer(&RenderOptions {
             shading: args.shading.on(),
             gradient_opacity: args
                 .gradient_opacity
                 .map(|(g0, g1)| raycaster::integrator::GradientOpacity { g0, g1 }),
             ..RenderOptions::default()
-        });
-        let (part, bytes_read) = distributed::open_part(&file, &region, ghost)?;
-        Ok(Opened {
-            file,
-            partition,
-            part,
-            bytes_read,
         })
+    }
+
+    /// Where the whole volume's macrocell ranges for balancing came from.
+    struct WholeRanges {
+        grid: MacrocellGrid,
+        /// "cache" or "first pass".
+        source: &'static str,
+        /// Bytes this rank read for them.
+        bytes_read: u64,
+        /// The volume's sample type (the widest any rank read when a
+        /// rescale made the parts' types differ).
+        sample_type: SampleType,
+    }
+
+    /// The whole volume's macrocell value ranges (side `m`, the scene's
+    /// default), from the volume's cache when every rank finds it, else by
+    /// a first pass: each rank reads a voxel-balanced region on
+    /// `balance_cell` cells, builds its macrocells' ranges, and an
+    /// all-reduce (min of minima, max of maxima) combines them; rank 0 then
+    /// writes the cache, so the next run needs no pass.
+    fn whole_ranges(
+        world: &SimpleCommunicator,
+        args: &RenderArgs,
+        file: &PartFile,
+        rank: usize,
+        ranks: usize,
+    ) -> Result<WholeRanges, Error> {
+        let grid = file.grid();
+        let m = raycaster::scene::default_macrocell(grid.dims);
+        let keyed = if args.no_cache {
+            None
+        } else {
+            file.cache_key(m)
+        };
+        let mut report = CacheReport::default();
+        let cached = keyed.as_ref().and_then(|(key, shape)| {
+            raycaster::scene::find_cached_macrocells(file.path(), key, *shape, None, &mut report)
+        });
+        if rank == 0 {
+            for w in &report.warnings {
+                eprintln!("vol_app: {w}");
+            }
+        }
+        // Every rank must take the same path: the first pass is collective.
+        if all_ok(world, cached.is_some())
+            && let Some(grid) = cached
+        {
+            let sample_type = keyed.map_or(SampleType::F32, |(_, shape)| shape.sample_type);
+            return Ok(WholeRanges {
+                grid,
+                source: "cache",
+                bytes_read: 0,
+                sample_type,
+            });
+        }
+        let first = Partition::kd(
+            grid.dims,
+            grid.spacing,
+            ranks,
+            &CellWeights::uniform(grid.dims, distributed::balance_cell(grid.dims)),
+        )
+        .and_then(|p| distributed::region_macrocell_ranges(file, &p.regions()[rank], m));
+        if !all_ok(world, first.is_ok()) {
+            return Err(match first {
+                Err(e) => e.into(),
+                Ok(_) => format!(
+                    "rank {rank}: another rank could not read its part of the volume for balancing (its error is above)"
+                )
+                .into(),
+            });
+        }
+        let Ok(first) = first else {
+            return Err("unreachable: every rank read its part".into());
+        };
+        // The sample type: the same on every rank unless a rescale gave
+        // the parts different types; then f32, which holds them all.
+        let code = first.sample_type as i32;
+        let (mut code_lo, mut code_hi) = (0i32, 0i32);
+        world.all_reduce_into(&code, &mut code_lo, SystemOperation::min());
+        world.all_reduce_into(&code, &mut code_hi, SystemOperation::max());
+        let sample_type = if code_lo == code_hi {
+            first.sample_type
+        } else {
+            SampleType::F32
+        };
+        let bytes_read = first.bytes_read;
+        let (mins, maxs): (Vec<f32>, Vec<f32>) = first.ranges.into_iter().unzip();
+        let (mut lo, mut hi) = (vec![0f32; mins.len()], vec![0f32; maxs.len()]);
+        world.all_reduce_into(&mins[..], &mut lo[..], SystemOperation::min());
+        world.all_reduce_into(&maxs[..], &mut hi[..], SystemOperation::max());
+        let count = MacrocellGrid::count_for(grid.dims, m);
+        let whole = MacrocellGrid::from_ranges(m, count, lo.into_iter().zip(hi).collect());
+        if rank == 0
+            && let Some((key, shape)) = &keyed
+        {
+            let mut report = CacheReport::default();
+            raycaster::scene::save_cached_macrocells(
+                file.path(),
+                key,
+                *shape,
+                &whole,
+                None,
+                &mut report,
+            );
+            for w in &report.warnings {
+                eprintln!("vol_app: {w}");
+            }
+        }
+        Ok(WholeRanges {
+            grid: whole,
+            source: "first pass",
+            bytes_read,
+            sample_type,
+        })
+    }
+
+    /// Sets up the frame (TF, camera, options, renderer) on every rank for
+    /// the whole volume's value range; an error on any rank ends all.
+    fn set_up(
+        world: &SimpleCommunicator,
+        args: &RenderArgs,
+        file: &PartFile,
+        sample: SampleType,
+        range: (f32, f32),
+        rank: usize,
+    ) -> Result<(TransferFunction, Camera, RenderOptions, PartRenderer), Error> {
+        let setup = (|| -> Result<_, Error> {
+            let tf = transfer_function(args, sample, range)?;
+            let camera = camera_for(args, &file.grid().bounds())?;
+            let options = render_options(args, range)?;
+            let renderer = PartRenderer::new(args.threads as usize)?;
+            Ok((tf, camera, options, renderer))
+        })();
+        if !all_ok(world, setup.is_ok()) {
+            return Err(match setup {
+                Err(e) => e,
+                Ok(_) => format!("rank {rank}: another rank failed to set up the frame").into(),
+            });
+        }
+        setup
+    }
+
+    /// Reads this rank's region of `partition`; an error on any rank ends
+    /// all.
+    fn open_region(
+        world: &SimpleCommunicator,
+        args: &RenderArgs,
+        file: &PartFile,
+        partition: &Partition,
+        rank: usize,
+    ) -> Result<(PartScene, u64), Error> {
+        let opened = distributed::open_part(file, &partition.regions()[rank], ghost(args));
+        if !all_ok(world, opened.is_ok()) {
+            return Err(match opened {
+                Err(e) => e.into(),
+                Ok(_) => format!(
+                    "rank {rank}: another rank could not open its part of the volume (its error is above)"
+                )
+                .into(),
+            });
+        }
+        Ok(opened?)
     }
 
     /// Whether `ok` holds on every rank.
@@ -177,50 +336,70 @@ mod transport {
         let root = world.process_at_rank(0);
         let load_start = Instant::now();
 
-        let opened = open(args, rank, ranks);
-        if !all_ok(&world, opened.is_ok()) {
-            return Err(match opened {
+        let file = open_file(args, rank);
+        if !all_ok(&world, file.is_ok()) {
+            return Err(match file {
                 Err(e) => e,
                 Ok(_) => format!(
-                    "rank {rank}: another rank could not open its part of the volume (its error is above)"
+                    "rank {rank}: another rank could not open the volume (its error is above)"
                 )
                 .into(),
             });
         }
-        let Ok(Opened {
-            file,
-            partition,
-            mut part,
-            bytes_read,
-        }) = opened
-        else {
-            return Err("unreachable: every rank opened its part".into());
-        };
-
-        // The whole volume's value range: the TF presets, the default iso
-        // value and the shading thresholds depend on it.
-        let (mut lo, mut hi) = (0f32, 0f32);
-        world.all_reduce_into(&part.value_range.0, &mut lo, SystemOperation::min());
-        world.all_reduce_into(&part.value_range.1, &mut hi, SystemOperation::max());
-        part.value_range = (lo, hi);
+        let file = file?;
         let grid = file.grid();
+
+        // The partition, the part, and the whole volume's value range (the
+        // TF presets, the default iso value and the shading thresholds
+        // depend on it).
+        let (partition, part, bytes_read, tf, camera, options, mut renderer, balancing) =
+            match args.balance {
+                Balance::Occupancy => {
+                    let whole = whole_ranges(&world, args, &file, rank, ranks)?;
+                    let range = whole.grid.value_range();
+                    let (tf, camera, options, renderer) =
+                        set_up(&world, args, &file, whole.sample_type, range, rank)?;
+                    let m = whole.grid.cell;
+                    let coarse = whole
+                        .grid
+                        .coarsened(distributed::balance_cell(grid.dims) / m);
+                    let weights = distributed::occupancy_weights_of(&grid, &coarse, &tf, &options);
+                    let partition = Partition::kd(grid.dims, grid.spacing, ranks, &weights)?;
+                    let (mut part, bytes) = open_region(&world, args, &file, &partition, rank)?;
+                    part.value_range = range;
+                    let balancing = (whole.source, whole.bytes_read);
+                    (
+                        partition, part, bytes, tf, camera, options, renderer, balancing,
+                    )
+                }
+                Balance::Voxels => {
+                    let partition = Partition::kd(
+                        grid.dims,
+                        grid.spacing,
+                        ranks,
+                        &CellWeights::voxels(grid.dims),
+                    )?;
+                    let (mut part, bytes) = open_region(&world, args, &file, &partition, rank)?;
+                    let (mut lo, mut hi) = (0f32, 0f32);
+                    world.all_reduce_into(&part.value_range.0, &mut lo, SystemOperation::min());
+                    world.all_reduce_into(&part.value_range.1, &mut hi, SystemOperation::max());
+                    part.value_range = (lo, hi);
+                    let sample = part.scene.volume().sample_type();
+                    let (tf, camera, options, renderer) =
+                        set_up(&world, args, &file, sample, (lo, hi), rank)?;
+                    (
+                        partition,
+                        part,
+                        bytes,
+                        tf,
+                        camera,
+                        options,
+                        renderer,
+                        ("", 0),
+                    )
+                }
+            };
         let sample = part.scene.volume().sample_type();
-        let setup = (|| -> Result<_, Error> {
-            let tf = transfer_function(args, sample, (lo, hi))?;
-            let camera = camera_for(args, &grid.bounds())?;
-            let options = render_options(args, (lo, hi))?;
-            let renderer = PartRenderer::new(args.threads as usize)?;
-            Ok((tf, camera, options, renderer))
-        })();
-        if !all_ok(&world, setup.is_ok()) {
-            return Err(match setup {
-                Err(e) => e,
-                Ok(_) => format!("rank {rank}: another rank failed to set up the frame").into(),
-            });
-        }
-        let Ok((tf, camera, options, mut renderer)) = setup else {
-            return Err("unreachable: every rank set up the frame".into());
-        };
         let load_ms = ms(load_start.elapsed());
         let compositor = distributed::compositor(&tf, &options, sample);
         let ctx = Ctx {
@@ -237,6 +416,7 @@ mod transport {
         let mut last = None;
         let mut traffic = [0u64; 3];
         let mut samples = 0u64;
+        let mut my_samples = 0u64;
         let mut method = args.composite;
         for n in 0..frames {
             world.barrier();
@@ -265,6 +445,7 @@ mod transport {
                 }
             }
             (method, traffic) = sent;
+            my_samples = image.samples;
             let mut all_samples = 0u64;
             world.all_reduce_into(&image.samples, &mut all_samples, SystemOperation::sum());
             samples = all_samples;
@@ -279,21 +460,25 @@ mod transport {
             traffic[0] as f64,
             traffic[1] as f64,
             traffic[2] as f64,
+            my_samples as f64,
+            balancing.1 as f64,
         ];
-        let mut all = vec![0f64; 6 * ranks];
+        const COLUMNS: usize = 8;
+        let mut all = vec![0f64; COLUMNS * ranks];
         if rank == 0 {
             root.gather_into_root(&mine[..], &mut all[..]);
         } else {
             root.gather_into(&mine[..]);
             return Ok(());
         }
-        let column = |c: usize| -> Vec<f64> { all.chunks_exact(6).map(|r| r[c]).collect() };
+        let column = |c: usize| -> Vec<f64> { all.chunks_exact(COLUMNS).map(|r| r[c]).collect() };
         let whole = |c: usize| -> Vec<u64> { column(c).into_iter().map(|v| v as u64).collect() };
         let read = whole(0);
         let rank_ms = column(1);
         let rank_composite_ms = column(2);
         let (rank_bytes_sent, rank_bytes_received, rank_messages_sent) =
             (whole(3), whole(4), whole(5));
+        let (rank_samples, rank_bytes_read_balancing) = (whole(6), whole(7));
         let Some(rgb) = last else {
             return Err("no frame was rendered".into());
         };
@@ -327,6 +512,10 @@ mod transport {
                 ranks,
                 rank_ms,
                 rank_bytes_read: read,
+                rank_samples,
+                balance: args.balance.name(),
+                balance_ranges: balancing.0,
+                rank_bytes_read_balancing,
                 bytes_exchanged: rank_bytes_sent.iter().sum(),
                 composite_ms_median: rank_composite_ms[0],
                 rank_composite_ms,

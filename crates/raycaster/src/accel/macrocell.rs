@@ -141,6 +141,43 @@ impl MacrocellGrid {
         )
     }
 
+    /// The grid of cells `factor` times as large per axis: coarse cell `c`
+    /// covers fine cells `c·factor .. c·factor + factor` (clamped), i.e.
+    /// voxels `[c·m·factor, c·m·factor + m·factor]`, and its range is theirs
+    /// combined, so it is exactly the grid [`MacrocellGrid::build`] makes
+    /// with the coarse side.
+    pub fn coarsened(&self, factor: u32) -> MacrocellGrid {
+        let k = factor.max(1);
+        if k == 1 {
+            return self.clone();
+        }
+        let count = UVec3::new(
+            self.count.x.div_ceil(k),
+            self.count.y.div_ceil(k),
+            self.count.z.div_ceil(k),
+        );
+        let mut ranges = Vec::with_capacity(count.element_product() as usize);
+        for x in 0..count.x {
+            for y in 0..count.y {
+                for z in 0..count.z {
+                    let lo = UVec3::new(x, y, z) * k;
+                    let hi = (lo + UVec3::splat(k)).min(self.count);
+                    let mut r = (f32::INFINITY, f32::NEG_INFINITY);
+                    for fx in lo.x..hi.x {
+                        for fy in lo.y..hi.y {
+                            let row = self.index(UVec3::new(fx, fy, 0));
+                            for &(a, b) in &self.ranges[row + lo.z as usize..row + hi.z as usize] {
+                                r = (r.0.min(a), r.1.max(b));
+                            }
+                        }
+                    }
+                    ranges.push(r);
+                }
+            }
+        }
+        Self::from_ranges(self.cell * k, count, ranges)
+    }
+
     /// The smallest and largest value in the whole volume.
     pub fn value_range(&self) -> (f32, f32) {
         self.ranges

@@ -33,16 +33,18 @@ pub mod render;
 pub use crate::integrator::Fragment;
 pub use composite::Compositor;
 pub use exchange::{BinarySwap, CompositeMethod, CompositePlan, DirectSend, SwapRound, Traffic};
-pub use partition::{CellWeights, Partition, Region, SwapPair};
+pub use partition::{Balance, CellWeights, Partition, Region, SwapPair, balance_cell};
 pub use read::{PartFile, PartVolume, ReadPolicy, extract};
 pub use render::{PartRenderer, PartScene, PartialImage};
 
+use crate::accel::{MacrocellGrid, SkipGrid};
 use crate::camera::Camera;
 use crate::error::Result;
 use crate::integrator::{Integrator, IntegratorVisitor, Occupancy};
 use crate::render::RenderOptions;
 use crate::scene::Scene;
 use crate::transfer::{TfLut, TransferFunction};
+use crate::volume::Grid;
 
 /// The ghost layer a frame with `options` needs around each region: 1
 /// voxel for trilinear sampling, 2 when central-difference gradients are
@@ -84,6 +86,21 @@ pub fn occupancy_weights(
     tf: &TransferFunction,
     options: &RenderOptions,
 ) -> CellWeights {
+    occupancy_weights_of(scene.grid(), scene.macrocells(), tf, options)
+}
+
+/// The cell weights that balance a partition of a volume on `grid` whose
+/// macrocells (any side, e.g. coarsened to [`balance_cell`]) have the
+/// value ranges `cells`, by those the frame leaves occupied: the TF gives
+/// some value of the range opacity (DVR, x-ray), the range holds the iso
+/// value (iso), or every cell (MIP, MinIP, whose integrators decide per
+/// cell); cells outside the clipping are empty.
+pub fn occupancy_weights_of(
+    grid: &Grid,
+    cells: &MacrocellGrid,
+    tf: &TransferFunction,
+    options: &RenderOptions,
+) -> CellWeights {
     struct OccupancyOf;
     impl IntegratorVisitor for OccupancyOf {
         type Output = Occupancy;
@@ -91,16 +108,96 @@ pub fn occupancy_weights(
             I::OCCUPANCY
         }
     }
-    let grid = scene.grid();
     let step = options.step_for(grid);
     let lut = TfLut::new(tf, step);
     let clip = options.clip.region(grid);
-    let skip =
-        options
-            .mode
-            .visit(OccupancyOf)
-            .skip_grid(scene, &lut, options.iso_value, clip.as_ref());
-    CellWeights::macrocells(grid.dims, scene.macrocells(), |i| skip.is_occupied_index(i))
+    let iso = options.iso_value;
+    let skip = match options.mode.visit(OccupancyOf) {
+        Occupancy::Visible => {
+            SkipGrid::build_clipped(cells, |lo, hi| lut.any_visible(lo, hi), clip.as_ref())
+        }
+        Occupancy::IsoValue => {
+            SkipGrid::build_clipped(cells, |lo, hi| lo <= iso && iso <= hi, clip.as_ref())
+        }
+        Occupancy::Every => SkipGrid::build_clipped(cells, |_, _| true, clip.as_ref()),
+    };
+    CellWeights::macrocells(grid.dims, cells, |i| skip.is_occupied_index(i))
+}
+
+/// The value ranges of the whole volume's macrocells of side `cell` that
+/// `region` holds, read from `file` (the region's box without a ghost
+/// layer: a macrocell's voxels `[c·m, c·m + m]` lie inside the region when
+/// its faces are on macrocell planes, as a partition on [`balance_cell`]
+/// cells makes them). The result has an entry for every macrocell of the
+/// whole grid, `(+∞, −∞)` for those the region does not hold, so the
+/// parts' results combine by element-wise min and max
+/// ([`merge_ranges`]) into the whole volume's grid, as an all-reduce
+/// does.
+pub fn region_macrocell_ranges(
+    file: &PartFile,
+    region: &Region,
+    cell: u32,
+) -> Result<RegionRanges> {
+    let dims = file.grid().dims;
+    let cell = cell.max(1);
+    let last = dims - glam::UVec3::ONE;
+    for a in 0..3 {
+        for plane in [region.lo[a], region.hi[a]] {
+            if plane % cell != 0 && plane != last[a] {
+                return Err(crate::error::Error::option(
+                    "ranks",
+                    format!(
+                        "region {} has a face at voxel plane {plane} (axis {a}), not on a \
+                         macrocell plane of side {cell}",
+                        region.index
+                    ),
+                ));
+            }
+        }
+    }
+    let count = MacrocellGrid::count_for(dims, cell);
+    let mut ranges = vec![(f32::INFINITY, f32::NEG_INFINITY); count.element_product() as usize];
+    let part = file.read_box(region.lo, region.hi)?;
+    let local = MacrocellGrid::build_any(&part.volume, cell, None);
+    let first = region.lo / cell;
+    for x in 0..local.count.x {
+        for y in 0..local.count.y {
+            for z in 0..local.count.z {
+                let c = glam::UVec3::new(x, y, z);
+                let g = first + c;
+                if g.cmplt(count).all() {
+                    let i = ((g.x * count.y + g.y) * count.z + g.z) as usize;
+                    ranges[i] = local.ranges[local.index(c)];
+                }
+            }
+        }
+    }
+    Ok(RegionRanges {
+        ranges,
+        bytes_read: part.bytes_read,
+        sample_type: part.volume.sample_type(),
+    })
+}
+
+/// What [`region_macrocell_ranges`] found.
+#[derive(Debug, Clone)]
+pub struct RegionRanges {
+    /// Per macrocell of the whole grid (x slowest, z fastest), its value
+    /// range, `(+∞, −∞)` where the region holds none of its voxels.
+    pub ranges: Vec<(f32, f32)>,
+    /// Bytes read from the file.
+    pub bytes_read: u64,
+    /// The type of the samples read (data units: a rescaled file's type
+    /// depends on its values).
+    pub sample_type: crate::sample::SampleType,
+}
+
+/// Folds the macrocell ranges `part` into `into` (element-wise min of the
+/// minima and max of the maxima).
+pub fn merge_ranges(into: &mut [(f32, f32)], part: &[(f32, f32)]) {
+    for (a, b) in into.iter_mut().zip(part) {
+        *a = (a.0.min(b.0), a.1.max(b.1));
+    }
 }
 
 /// The compositor for a frame with these settings on a volume of sample

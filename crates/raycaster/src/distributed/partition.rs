@@ -37,6 +37,40 @@ const EMPTY_CELL_DIVISOR: u64 = 16;
 /// Cells per axis of the fallback grid (no macrocell occupancy known).
 const FALLBACK_CELLS: u32 = 64;
 
+/// What a partition balances between the ranks.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+#[cfg_attr(feature = "clap", derive(clap::ValueEnum))]
+pub enum Balance {
+    /// The macrocells the frame's transfer function (iso value, clipping)
+    /// leaves occupied: where the samples are taken.
+    #[default]
+    Occupancy,
+    /// Voxel count alone.
+    Voxels,
+}
+
+impl Balance {
+    /// The name on the command line.
+    pub fn name(self) -> &'static str {
+        match self {
+            Balance::Occupancy => "occupancy",
+            Balance::Voxels => "voxels",
+        }
+    }
+}
+
+/// The side (voxels) of the cells an occupancy-balanced partition is built
+/// on for a volume of `dims`: the multiple of the scene's macrocell side
+/// ([`crate::scene::default_macrocell`]) nearest above 1/64 of the longest
+/// axis, so that the value ranges of those macrocells (from the volume's
+/// cache) combine exactly into the partition's cells and every region's
+/// faces lie on macrocell planes.
+pub fn balance_cell(dims: UVec3) -> u32 {
+    let m = crate::scene::default_macrocell(dims);
+    let target = (dims.max_element() / FALLBACK_CELLS).max(1);
+    m * target.div_ceil(m)
+}
+
 /// The part of the volume a rank owns.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct Region {
@@ -185,6 +219,11 @@ impl CellWeights {
     pub fn voxels(dims: UVec3) -> Self {
         let cell = (dims.max_element() / FALLBACK_CELLS).max(1);
         Self::from_fn(dims, cell, |_| true)
+    }
+
+    /// Weights by voxel count on cells of `cell` voxels a side.
+    pub fn uniform(dims: UVec3, cell: u32) -> Self {
+        Self::from_fn(dims, cell.max(1), |_| true)
     }
 
     /// Weights by occupancy: `occupied(i)` for macrocell `i` of `cells`

@@ -61,6 +61,8 @@ enum Samples {
 #[derive(Debug)]
 pub struct PartFile {
     path: PathBuf,
+    /// The format detected (`None` when opened whole).
+    format: Option<FileFormat>,
     grid: Grid,
     samples: Samples,
     file_bytes: u64,
@@ -97,6 +99,7 @@ impl PartFile {
             let opened = crate::format::open_file(path, &OpenOptions::default())?;
             return Ok(PartFile {
                 path: path.to_path_buf(),
+                format: None,
                 grid: *opened.volume.grid(),
                 samples: Samples::Whole(opened.volume),
                 file_bytes: opened.info.file_bytes.max(file_bytes),
@@ -180,10 +183,52 @@ impl PartFile {
         }
         Ok(PartFile {
             path: path.to_path_buf(),
+            format: Some(format),
             grid,
             samples,
             file_bytes,
         })
+    }
+
+    /// The key and grid shape of this file's macrocell cache for cells of
+    /// `cell` voxels, the cache [`Scene::open`] reads and writes, or `None`
+    /// when the file gets no cache here: opened whole, samples in another
+    /// file (a detached NRRD header), more than one volume in the file, a
+    /// rescale (whose result type depends on the data), or a fingerprint
+    /// that cannot be read.
+    ///
+    /// [`Scene::open`]: crate::scene::Scene::open
+    pub fn cache_key(
+        &self,
+        cell: u32,
+    ) -> Option<(
+        crate::accel::cache::CacheKey,
+        crate::accel::cache::GridShape,
+    )> {
+        let format = self.format?;
+        let sample_type = match &self.samples {
+            Samples::VolLinear | Samples::VolBricked(_) => SampleType::U8,
+            Samples::Array {
+                data,
+                offset,
+                layout,
+                rescale: None,
+            } if data == &self.path
+                && layout
+                    .byte_len(data)
+                    .is_ok_and(|n| offset.saturating_add(n) == self.file_bytes) =>
+            {
+                layout.sample
+            }
+            _ => return None,
+        };
+        let key = crate::accel::cache::CacheKey::of(&self.path, format.name()).ok()?;
+        let shape = crate::accel::cache::GridShape {
+            sample_type,
+            dims: self.grid.dims,
+            cell,
+        };
+        Some((key, shape))
     }
 
     /// The whole volume's grid.
