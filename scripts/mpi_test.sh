@@ -17,7 +17,7 @@
 #   - balancing: occupancy (the default) from a first pass when there is
 #     no macrocell cache (which rank 0 then writes), from the cache after
 #     it, with --no-cache, and --balance voxels, each against the single
-#     process;
+#     process; a headerless raw file (--raw-dims ...) read in part;
 #   - checks that a missing file, and one rank failing to open its part,
 #     end every rank with an error (non-zero exit, no hang: `timeout`);
 #   - times --repeat 3 --stats for P = 1, 2, 4 and each method
@@ -150,6 +150,13 @@ mpirun_ 4 "$app" render "$f" --distributed "${common[@]}" --mode mip --balance v
 grep -q '"balance":"voxels"' "$dir/bal.json"
 "$compare" "$dir/bricked-mip.single.png" "$dir/bal-voxels.png" --min-psnr 50
 checks=$((checks + 4))
+
+echo "== mpi_test: a headerless raw file read in part (the linear .vol's samples after its 26-byte header)"
+raw=(--raw-dims 96,80,64 --raw-type u8 --raw-offset 26 --raw-order zfast)
+mpirun_ 3 "$app" render "$dir/shapes_linear.vol" "${raw[@]}" --distributed "${common[@]}" \
+    --mode dvr --ert off --out "$dir/raw.p3.png"
+"$compare" "$dir/linear-dvr.single.png" "$dir/raw.p3.png" --min-psnr 50
+checks=$((checks + 1))
 
 echo "== mpi_test: failures end every rank (no hang)"
 expect_failure() {

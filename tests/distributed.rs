@@ -26,7 +26,7 @@ use raycaster::distributed::{
 };
 use raycaster::format::samples::{self, Endian};
 use raycaster::format::vol::{self, VolLayout};
-use raycaster::format::{OpenOptions, nifti, nrrd};
+use raycaster::format::{OpenOptions, RawOptions, nifti, nrrd};
 use raycaster::prelude::*;
 
 const MIN_PSNR: f64 = 50.0;
@@ -155,7 +155,22 @@ fn single(
     tf: &TransferFunction,
     o: &RenderOptions,
 ) -> Frame {
-    let opened = raycaster::format::open_file(path, &OpenOptions::default()).expect("open");
+    single_with(path, None, camera, tf, o)
+}
+
+/// The single-process render of `path`, a raw file where `raw` says so.
+fn single_with(
+    path: &std::path::Path,
+    raw: Option<&RawOptions>,
+    camera: &Camera,
+    tf: &TransferFunction,
+    o: &RenderOptions,
+) -> Frame {
+    let options = OpenOptions {
+        raw: raw.cloned(),
+        ..OpenOptions::default()
+    };
+    let opened = raycaster::format::open_file(path, &options).expect("open");
     let scene = Scene::new(opened.volume);
     SerialRenderer::new()
         .render(&scene, camera, tf, o)
@@ -164,7 +179,12 @@ fn single(
 
 /// Renders every mode and camera with P = 1..=4 parts and compares.
 fn agree_with_single_process(path: &std::path::Path, what: &str) {
-    let file = PartFile::open(path, ReadPolicy::Part).expect("open for parts");
+    agree_with_single_process_raw(path, None, what)
+}
+
+/// As [`agree_with_single_process`], for a raw file where `raw` says so.
+fn agree_with_single_process_raw(path: &std::path::Path, raw: Option<&RawOptions>, what: &str) {
+    let file = PartFile::open_with(path, raw, ReadPolicy::Part).expect("open for parts");
     let grid = file.grid();
     let tf = soft_tf();
     let mut worst = (f64::INFINITY, 0u8, String::new());
@@ -182,7 +202,7 @@ fn agree_with_single_process(path: &std::path::Path, what: &str) {
         .unwrap();
         for (cam_name, camera) in cameras(&grid) {
             for (mode_name, options, tf) in modes(&tf) {
-                let want = single(path, &camera, &tf, &options);
+                let want = single_with(path, raw, &camera, &tf, &options);
                 let got = render_in_process(&file, &partition, &camera, &tf, &options, 2)
                     .unwrap_or_else(|e| panic!("{what} {parts} parts {mode_name} {cam_name}: {e}"));
                 let d = compare_images(&want.rgb, &got.rgb, MAX_LEVELS);
@@ -287,6 +307,23 @@ fn nrrd_and_nifti_parts_composite_to_the_single_process_image() {
     )
     .unwrap();
     agree_with_single_process(&p, "u16.nii");
+    // A headerless file, i16 big-endian, z fastest, after a 100-byte
+    // header of another format.
+    let v = AnyVolume::from_fn(grid, |v| f(v.x, v.y, v.z) as i16 * 5 - 300);
+    let p = dir.join("i16be.raw");
+    let mut bytes = vec![0xAB; 100];
+    bytes.extend_from_slice(&samples::encode_volume(&v, AxisOrder::ZFast, Endian::Big));
+    std::fs::write(&p, &bytes).unwrap();
+    let raw = RawOptions {
+        spacing: grid.spacing,
+        offset: 100,
+        order: AxisOrder::ZFast,
+        ..RawOptions::new(dims, SampleType::I16, Endian::Big)
+    };
+    agree_with_single_process_raw(&p, Some(&raw), "i16be.raw");
+    // Read whole on request too.
+    let whole = PartFile::open_with(&p, Some(&raw), ReadPolicy::Whole).unwrap();
+    assert_eq!(whole.grid().dims, dims);
 }
 
 /// With ESS and ERT off every sample is taken: the parts' samples add up

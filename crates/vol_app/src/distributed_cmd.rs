@@ -135,9 +135,6 @@ mod transport {
                 "--distributed renders volumes; it does not work with --mode metaballs".into(),
             );
         }
-        if args.raw.open_options(LoadMode::Map).raw.is_some() {
-            return Err("--distributed does not read raw files (--raw-dims) in part; convert them to .vol or NRRD".into());
-        }
         if std::env::var(FAIL_RANK_VAR).is_ok_and(|v| v == rank.to_string()) {
             return Err(format!(
                 "rank {rank}: cannot open {} ({FAIL_RANK_VAR} is set to this rank)",
@@ -145,7 +142,12 @@ mod transport {
             )
             .into());
         }
-        Ok(PartFile::open(path, args.distributed_read)?)
+        let raw = args.raw.open_options(LoadMode::Map).raw;
+        Ok(PartFile::open_with(
+            path,
+            raw.as_ref(),
+            args.distributed_read,
+        )?)
     }
 
     /// The ghost layer the options need (1 voxel, 2 with gradients).

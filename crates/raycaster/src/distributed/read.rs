@@ -22,7 +22,7 @@ use glam::{UVec3, Vec3};
 
 use crate::error::{Error, Result};
 use crate::format::samples::{self, Endian, Rescale, SampleLayout, Stream};
-use crate::format::{FileFormat, OpenOptions, nifti, nrrd, vol};
+use crate::format::{FileFormat, OpenOptions, RawOptions, nifti, nrrd, vol};
 use crate::sample::SampleType;
 use crate::volume::{AnyVolume, AxisOrder, BrickGrid, Grid, Volume, VolumeVisitor};
 
@@ -63,6 +63,8 @@ pub struct PartFile {
     path: PathBuf,
     /// The format detected (`None` when opened whole).
     format: Option<FileFormat>,
+    /// The description of a headerless file.
+    raw: Option<RawOptions>,
     grid: Grid,
     samples: Samples,
     file_bytes: u64,
@@ -92,71 +94,114 @@ impl PartFile {
     /// [`crate::format::detect`] does) and finds its samples; with
     /// [`ReadPolicy::Whole`] opens the whole volume.
     pub fn open(path: &Path, policy: ReadPolicy) -> Result<Self> {
+        Self::open_with(path, None, policy)
+    }
+
+    /// As [`PartFile::open`], or, with `raw`, a headerless file of samples
+    /// as `raw` describes them (read in part like the samples of a raw
+    /// NRRD).
+    pub fn open_with(path: &Path, raw: Option<&RawOptions>, policy: ReadPolicy) -> Result<Self> {
         let file_bytes = std::fs::metadata(path)
             .map_err(|e| Error::io(path, e))?
             .len();
         if policy == ReadPolicy::Whole {
-            let opened = crate::format::open_file(path, &OpenOptions::default())?;
+            let options = OpenOptions {
+                raw: raw.cloned(),
+                ..OpenOptions::default()
+            };
+            let opened = crate::format::open_file(path, &options)?;
             return Ok(PartFile {
                 path: path.to_path_buf(),
                 format: None,
+                raw: raw.cloned(),
                 grid: *opened.volume.grid(),
                 samples: Samples::Whole(opened.volume),
                 file_bytes: opened.info.file_bytes.max(file_bytes),
             });
         }
-        let format = crate::format::detect(path)?;
-        let (grid, samples) = match format {
-            FileFormat::Vol => {
-                let h = vol::read_header(path)?;
-                let samples = match h.layout {
-                    vol::VolLayout::Linear => Samples::VolLinear,
-                    vol::VolLayout::Bricked { side } => {
-                        Samples::VolBricked(BrickGrid::new(h.dims, side as u32)?)
-                    }
-                };
-                (h.grid(), samples)
-            }
-            FileFormat::Nrrd => {
-                let h = nrrd::NrrdHeader::read(path)?;
-                if h.encoding != nrrd::Encoding::Raw {
-                    return Err(cannot_part(path, "gzip-compressed data"));
+        let format = match raw {
+            Some(_) => FileFormat::Raw,
+            None => crate::format::detect(path)?,
+        };
+        let (grid, samples) = match (format, raw) {
+            (FileFormat::Raw, Some(raw)) => {
+                if std::fs::metadata(path)
+                    .map_err(|e| Error::io(path, e))?
+                    .is_dir()
+                {
+                    return Err(Error::format(
+                        path,
+                        crate::error::FormatError::Invalid("is a directory, not a raw file".into()),
+                    ));
                 }
-                h.layout.validate(path)?;
-                let bytes = h.layout.byte_len(path)?;
-                let offset = match h.data_offset {
-                    Some(o) => o,
-                    None => {
-                        let len = std::fs::metadata(&h.data_file)
-                            .map_err(|e| Error::io(&h.data_file, e))?
-                            .len();
-                        len.saturating_sub(bytes.saturating_mul(h.extra_volumes))
-                    }
+                let layout = SampleLayout {
+                    dims: raw.dims,
+                    spacing: raw.spacing,
+                    sample: raw.sample,
+                    endian: raw.endian,
+                    order: raw.order,
                 };
-                let grid = Grid::new(h.layout.dims, h.layout.spacing);
+                let grid = Grid::new(layout.dims, layout.spacing);
                 let samples = Samples::Array {
-                    data: h.data_file,
-                    offset,
-                    layout: h.layout,
+                    data: path.to_path_buf(),
+                    offset: raw.offset,
+                    layout,
                     rescale: None,
                 };
                 (grid, samples)
             }
-            FileFormat::Nifti => match nifti::locate_samples(path)? {
-                Some(at) => (
-                    Grid::new(at.layout.dims, at.layout.spacing),
-                    Samples::Array {
-                        data: at.data,
-                        offset: at.offset,
-                        layout: at.layout,
-                        rescale: at.rescale,
-                    },
-                ),
-                None => return Err(cannot_part(path, "gzip-compressed data")),
+            (format, _) => match format {
+                FileFormat::Vol => {
+                    let h = vol::read_header(path)?;
+                    let samples = match h.layout {
+                        vol::VolLayout::Linear => Samples::VolLinear,
+                        vol::VolLayout::Bricked { side } => {
+                            Samples::VolBricked(BrickGrid::new(h.dims, side as u32)?)
+                        }
+                    };
+                    (h.grid(), samples)
+                }
+                FileFormat::Nrrd => {
+                    let h = nrrd::NrrdHeader::read(path)?;
+                    if h.encoding != nrrd::Encoding::Raw {
+                        return Err(cannot_part(path, "gzip-compressed data"));
+                    }
+                    h.layout.validate(path)?;
+                    let bytes = h.layout.byte_len(path)?;
+                    let offset = match h.data_offset {
+                        Some(o) => o,
+                        None => {
+                            let len = std::fs::metadata(&h.data_file)
+                                .map_err(|e| Error::io(&h.data_file, e))?
+                                .len();
+                            len.saturating_sub(bytes.saturating_mul(h.extra_volumes))
+                        }
+                    };
+                    let grid = Grid::new(h.layout.dims, h.layout.spacing);
+                    let samples = Samples::Array {
+                        data: h.data_file,
+                        offset,
+                        layout: h.layout,
+                        rescale: None,
+                    };
+                    (grid, samples)
+                }
+                FileFormat::Nifti => match nifti::locate_samples(path)? {
+                    Some(at) => (
+                        Grid::new(at.layout.dims, at.layout.spacing),
+                        Samples::Array {
+                            data: at.data,
+                            offset: at.offset,
+                            layout: at.layout,
+                            rescale: at.rescale,
+                        },
+                    ),
+                    None => return Err(cannot_part(path, "gzip-compressed data")),
+                },
+                other => {
+                    return Err(cannot_part(path, &format!("a {} file", other.name())));
+                }
             },
-            other => {
-                return Err(cannot_part(path, &format!("a {} file", other.name())));
-            }
         };
         if let Samples::Array {
             data,
@@ -184,6 +229,7 @@ impl PartFile {
         Ok(PartFile {
             path: path.to_path_buf(),
             format: Some(format),
+            raw: raw.cloned(),
             grid,
             samples,
             file_bytes,
@@ -222,7 +268,12 @@ impl PartFile {
             }
             _ => return None,
         };
-        let key = crate::accel::cache::CacheKey::of(&self.path, format.name()).ok()?;
+        // The description Scene::open keys a cache with.
+        let description = match &self.raw {
+            Some(raw) => format!("{} {raw:?}", format.name()),
+            None => format.name().to_string(),
+        };
+        let key = crate::accel::cache::CacheKey::of(&self.path, &description).ok()?;
         let shape = crate::accel::cache::GridShape {
             sample_type,
             dims: self.grid.dims,
