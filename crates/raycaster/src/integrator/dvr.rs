@@ -174,7 +174,7 @@ impl DvrState {
             };
             count = count.min(stop);
         }
-        let t1 = t0 * beta.powi(count as i32);
+        let t1 = t0 * super::shading::powi(beta, count as i32);
         self.color += e.truncate() * ((t0 - t1) / e.w);
         self.alpha = 1.0 - t1;
         if self.alpha >= threshold || count < n {

@@ -57,7 +57,7 @@ impl Phong {
         // R = 2(N·L)N − L, so R·V = 2(N·L)² − 1 for a headlight.
         let rdotv = (2.0 * ndotl * ndotl - 1.0).max(0.0);
         let spec = if self.ks > 0.0 {
-            self.ks * rdotv.powi(self.shininess)
+            self.ks * powi(rdotv, self.shininess)
         } else {
             0.0
         };
@@ -79,10 +79,56 @@ impl Phong {
         let r = n * (2.0 * ndotl) - l;
         let rdotv = r.dot(view).max(0.0);
         let spec = if self.ks > 0.0 {
-            self.ks * rdotv.powi(self.shininess)
+            self.ks * powi(rdotv, self.shininess)
         } else {
             0.0
         };
         (self.kd * ndotl, spec)
+    }
+}
+
+/// `x` to the integer power `n`, by the square-and-multiply that
+/// `f32::powi` runs out of line for an exponent known only at run time
+/// (compiler-rt's `__powisf2`; the same products in the same order, so the
+/// same result), written here so it inlines into the sample loops: the
+/// call was 2 % of a shaded frame.
+#[inline(always)]
+pub(crate) fn powi(mut x: f32, n: i32) -> f32 {
+    let recip = n < 0;
+    let mut b = n.unsigned_abs();
+    let mut r = 1.0f32;
+    loop {
+        if b & 1 != 0 {
+            r *= x;
+        }
+        b /= 2;
+        if b == 0 {
+            break;
+        }
+        x *= x;
+    }
+    if recip { 1.0 / r } else { r }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::powi;
+
+    #[test]
+    fn powi_is_f32_powi() {
+        let mut rng = fastrand::Rng::with_seed(7);
+        for _ in 0..10_000 {
+            let x = rng.f32() * 2.0;
+            let n = rng.i32(-40..=200);
+            let (a, b) = (powi(x, n), x.powi(n));
+            assert!(
+                a == b || (a - b).abs() <= 1e-6 * b.abs() || (a.is_infinite() && b.is_infinite()),
+                "{x}^{n}: {a} against {b}"
+            );
+        }
+        assert_eq!(powi(0.5, 0), 1.0);
+        assert_eq!(powi(3.0, 1), 3.0);
+        assert_eq!(powi(2.0, 10), 1024.0);
+        assert_eq!(powi(2.0, -2), 0.25);
     }
 }
