@@ -1,8 +1,9 @@
 //! Building the skip grid of a transfer function (what a TF edit in the
 //! viewer waits for): the macrocell grid of an 800³ volume (200³ cells of
 //! side 4, 8 M cells) classified under the `shapes` TF, with its distance
-//! field, on rayon pools of 1 and 2 threads (the build is sequential today:
-//! the two rows show what a parallel build would have to beat).
+//! field, on rayon pools of 1 and 2 threads (the classification and the
+//! coarse level run in x-slabs on the pool; the distance field's raster
+//! passes are sequential).
 //!
 //! Run with `cargo bench --bench skip_build`.
 

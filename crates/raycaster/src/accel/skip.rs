@@ -52,7 +52,7 @@ pub struct SkipGrid {
 impl SkipGrid {
     /// Marks the cells for which `occupied(min, max)` holds and computes the
     /// distance field of the rest.
-    pub fn build(cells: &MacrocellGrid, occupied: impl Fn(f32, f32) -> bool) -> Self {
+    pub fn build(cells: &MacrocellGrid, occupied: impl Fn(f32, f32) -> bool + Sync) -> Self {
         Self::build_clipped(cells, occupied, None)
     }
 
@@ -61,47 +61,59 @@ impl SkipGrid {
     /// space (and the object renderer culls bricks made only of it).
     pub fn build_clipped(
         cells: &MacrocellGrid,
-        occupied: impl Fn(f32, f32) -> bool,
+        occupied: impl Fn(f32, f32) -> bool + Sync,
         clip: Option<&ClipRegion>,
     ) -> Self {
-        // Neighbouring cells often share a range (all-empty space above
-        // all), so remember the last answer.
-        let mut last = (f32::NAN, f32::NAN, false);
-        let occupied: Vec<bool> = cells
-            .ranges
-            .iter()
-            .map(|&(lo, hi)| {
-                if lo != last.0 || hi != last.1 {
-                    last = (lo, hi, occupied(lo, hi));
-                }
-                last.2
-            })
-            .collect();
+        use rayon::prelude::*;
         let n = cells.count;
-        let mut occupied = occupied;
-        if let Some(clip) = clip {
-            let side = cells.cell as f32;
-            let (ny, nz) = (n.y as usize, n.z as usize);
-            for (i, occ) in occupied.iter_mut().enumerate().filter(|(_, o)| **o) {
-                let c = UVec3::new(
-                    (i / (ny * nz)) as u32,
-                    ((i / nz) % ny) as u32,
-                    (i % nz) as u32,
-                );
-                let lo = c.as_vec3() * side;
-                *occ = clip.may_hold(lo, lo + Vec3::splat(side));
-            }
-        }
+        let (ny, nz) = (n.y as usize, n.z as usize);
+        let slab = ny * nz;
+        // One x-slab of cells per task, on the current rayon pool: a TF
+        // edit in the viewer waits for this (8 M cells at 800³).
+        let mut occ = vec![false; cells.ranges.len()];
+        occ.par_chunks_mut(slab)
+            .zip(cells.ranges.par_chunks(slab))
+            .enumerate()
+            .for_each(|(x, (occ, ranges))| {
+                // Neighbouring cells often share a range (all-empty space
+                // above all), so remember the last answer.
+                let mut last = (f32::NAN, f32::NAN, false);
+                for (o, &(lo, hi)) in occ.iter_mut().zip(ranges) {
+                    if lo != last.0 || hi != last.1 {
+                        last = (lo, hi, occupied(lo, hi));
+                    }
+                    *o = last.2;
+                }
+                if let Some(clip) = clip {
+                    let side = cells.cell as f32;
+                    for (i, o) in occ.iter_mut().enumerate().filter(|(_, o)| **o) {
+                        let c = UVec3::new(x as u32, (i / nz) as u32, (i % nz) as u32);
+                        let lo = c.as_vec3() * side;
+                        *o = clip.may_hold(lo, lo + Vec3::splat(side));
+                    }
+                }
+            });
+        let occupied = occ;
+        // The coarse level: a coarse cell (2×2×2 cells) is occupied when
+        // any of its cells is; each coarse x-slab is written by one task
+        // from the two cell slabs it covers.
         let coarse_count = (n + UVec3::ONE) / 2;
         let (cy, cz) = (coarse_count.y as usize, coarse_count.z as usize);
         let mut distance = vec![u8::MAX; coarse_count.x as usize * cy * cz];
-        let (ny, nz) = (n.y as usize, n.z as usize);
-        for (i, &occ) in occupied.iter().enumerate() {
-            if occ {
-                let (x, y, z) = (i / (ny * nz), (i / nz) % ny, i % nz);
-                distance[((x / 2) * cy + y / 2) * cz + z / 2] = 0;
-            }
-        }
+        distance
+            .par_chunks_mut(cy * cz)
+            .enumerate()
+            .for_each(|(cx, coarse)| {
+                for x in (2 * cx..2 * cx + 2).filter(|&x| x < n.x as usize) {
+                    for y in 0..ny {
+                        let row = &occupied[(x * ny + y) * nz..][..nz];
+                        let out = &mut coarse[(y / 2) * cz..][..cz];
+                        for (z, _) in row.iter().enumerate().filter(|(_, o)| **o) {
+                            out[z / 2] = 0;
+                        }
+                    }
+                }
+            });
         chessboard_distance(&mut distance, coarse_count);
         SkipGrid {
             cell: cells.cell as f32,
