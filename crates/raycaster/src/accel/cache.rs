@@ -336,29 +336,40 @@ fn decode(bytes: &[u8], key: &CacheKey, shape: GridShape) -> Result<MacrocellGri
     if !c.0.is_empty() {
         return Err(corrupt("trailing bytes"));
     }
-    let pairs = |f: &dyn Fn(&[u8]) -> f32| -> Vec<(f32, f32)> {
+    // Millions of cells for a large volume (16 M at most): decoded in
+    // parallel on the current rayon pool, each decoder monomorphised so the
+    // loop vectorises.
+    fn pairs<const N: usize>(values: &[u8], f: fn([u8; N]) -> f32) -> Vec<(f32, f32)> {
+        use rayon::prelude::*;
         values
-            .chunks_exact(2 * size)
-            .map(|p| (f(&p[..size]), f(&p[size..])))
+            .par_chunks_exact(2 * N)
+            .with_min_len(1 << 14)
+            .map(|p| {
+                let (a, b) = p.split_at(N);
+                let v = |x: &[u8]| f(std::array::from_fn(|i| x[i]));
+                (v(a), v(b))
+            })
             .collect()
-    };
+    }
     let ranges = match shape.sample_type {
-        SampleType::U8 => values
-            .chunks_exact(2)
-            .map(|p| (p[0] as f32, p[1] as f32))
-            .collect(),
-        SampleType::I8 => values
-            .chunks_exact(2)
-            .map(|p| (p[0] as i8 as f32, p[1] as i8 as f32))
-            .collect(),
-        SampleType::U16 => pairs(&|b| u16::from_le_bytes([b[0], b[1]]) as f32),
-        SampleType::I16 => pairs(&|b| i16::from_le_bytes([b[0], b[1]]) as f32),
-        SampleType::F32 => pairs(&|b| f32::from_le_bytes([b[0], b[1], b[2], b[3]])),
+        SampleType::U8 => pairs::<1>(values, |b| b[0] as f32),
+        SampleType::I8 => pairs::<1>(values, |b| b[0] as i8 as f32),
+        SampleType::U16 => pairs::<2>(values, |b| u16::from_le_bytes(b) as f32),
+        SampleType::I16 => pairs::<2>(values, |b| i16::from_le_bytes(b) as f32),
+        SampleType::F32 => pairs::<4>(values, f32::from_le_bytes),
     };
-    if ranges.iter().any(|&(lo, hi)| lo > hi) {
+    use rayon::prelude::*;
+    // (NaN compares false both ways, as the sequential check did.)
+    if ranges
+        .par_iter()
+        .with_min_len(1 << 14)
+        .any(|&(lo, hi)| lo > hi)
+    {
         return Err(corrupt("a cell's minimum exceeds its maximum"));
     }
     let uniform = (0..cells)
+        .into_par_iter()
+        .with_min_len(1 << 14)
         .map(|i| uniform[i / 8] >> (i % 8) & 1 == 1)
         .collect();
     Ok(MacrocellGrid {

@@ -42,49 +42,59 @@ impl BrickSet {
         let max_coord = grid.max_coord();
         let m = cells.cell.max(1);
         let last_cell = cells.count - UVec3::ONE;
-        let mut visible = Vec::new();
-        for bx in 0..count.x {
-            for by in 0..count.y {
-                for bz in 0..count.z {
-                    let b = UVec3::new(bx, by, bz);
-                    let lo = (b * side).as_vec3().min(max_coord);
-                    let hi = ((b + UVec3::ONE) * side).as_vec3().min(max_coord);
-                    if clip.is_some_and(|c| !c.may_hold(lo, hi)) {
-                        continue;
-                    }
-                    if !cull {
-                        visible.push((b, Aabb::new(lo, hi)));
-                        continue;
-                    }
-                    // The cells holding the brick's sample positions
-                    // [b·B, (b+1)·B), clamped to the grid as the sampler
-                    // clamps positions.
-                    let c0 = (b * side / m).min(last_cell);
-                    let c1 = (((b + UVec3::ONE) * side).map(|v| v.div_ceil(m)) - UVec3::ONE)
-                        .min(last_cell)
-                        .max(c0);
-                    let mut occ_lo = UVec3::MAX;
-                    let mut occ_hi = UVec3::ZERO;
-                    for cx in c0.x..=c1.x {
-                        for cy in c0.y..=c1.y {
-                            for cz in c0.z..=c1.z {
-                                let c = UVec3::new(cx, cy, cz);
-                                if skip.is_occupied(c) {
-                                    occ_lo = occ_lo.min(c);
-                                    occ_hi = occ_hi.max(c);
-                                }
-                            }
+        // Brick `b` if it is kept, with the box of its occupied cells.
+        let keep = |b: UVec3| -> Option<(UVec3, Aabb)> {
+            let lo = (b * side).as_vec3().min(max_coord);
+            let hi = ((b + UVec3::ONE) * side).as_vec3().min(max_coord);
+            if clip.is_some_and(|c| !c.may_hold(lo, hi)) {
+                return None;
+            }
+            if !cull {
+                return Some((b, Aabb::new(lo, hi)));
+            }
+            // The cells holding the brick's sample positions
+            // [b·B, (b+1)·B), clamped to the grid as the sampler
+            // clamps positions.
+            let c0 = (b * side / m).min(last_cell);
+            let c1 = (((b + UVec3::ONE) * side).map(|v| v.div_ceil(m)) - UVec3::ONE)
+                .min(last_cell)
+                .max(c0);
+            let mut occ_lo = UVec3::MAX;
+            let mut occ_hi = UVec3::ZERO;
+            for cx in c0.x..=c1.x {
+                for cy in c0.y..=c1.y {
+                    for cz in c0.z..=c1.z {
+                        let c = UVec3::new(cx, cy, cz);
+                        if skip.is_occupied(c) {
+                            occ_lo = occ_lo.min(c);
+                            occ_hi = occ_hi.max(c);
                         }
                     }
-                    if occ_lo.x == u32::MAX {
-                        continue;
-                    }
-                    let olo = (occ_lo * m).as_vec3();
-                    let ohi = ((occ_hi + UVec3::ONE) * m).as_vec3();
-                    visible.push((b, Aabb::new(lo.max(olo), hi.min(ohi).max(lo.max(olo)))));
                 }
             }
-        }
+            if occ_lo.x == u32::MAX {
+                return None;
+            }
+            let olo = (occ_lo * m).as_vec3();
+            let ohi = ((occ_hi + UVec3::ONE) * m).as_vec3();
+            Some((b, Aabb::new(lo.max(olo), hi.min(ohi).max(lo.max(olo)))))
+        };
+        // One x-slab of bricks per task on the current rayon pool (a TF
+        // edit waits for this: 2 M bricks at 2000³), concatenated in order.
+        use rayon::prelude::*;
+        let slabs: Vec<Vec<(UVec3, Aabb)>> = (0..count.x)
+            .into_par_iter()
+            .map(|bx| {
+                let mut v = Vec::new();
+                for by in 0..count.y {
+                    for bz in 0..count.z {
+                        v.extend(keep(UVec3::new(bx, by, bz)));
+                    }
+                }
+                v
+            })
+            .collect();
+        let visible = slabs.concat();
         BrickSet {
             side,
             count,

@@ -56,21 +56,26 @@ impl FrameWork {
                 Projection::Orthographic => (0..3).map(|a| sign[a] * b[a] as i64).sum(),
             }
         };
-        let mut order: Vec<(i64, u32, PixelRect)> = Vec::with_capacity(set.visible.len());
-        for (i, (b, bounds)) in set.visible.iter().enumerate() {
-            let world = Aabb::new(
-                grid.voxel_to_world(bounds.min),
-                grid.voxel_to_world(bounds.max),
-            );
-            let Some(fp) = footprint(frame, camera, &world) else {
-                continue;
-            };
-            let Some(fp) = intersect(&fp, &rect) else {
-                continue;
-            };
-            order.push((key(*b), i as u32, fp));
-        }
-        order.sort_unstable_by_key(|&(k, i, _)| (k, i));
+        // Every visible brick's screen footprint, on the current rayon pool
+        // (every frame projects them all: 10⁵ bricks and more for the
+        // largest volumes); the sort key is unique, so the order is fixed.
+        use rayon::prelude::*;
+        let mut order: Vec<(i64, u32, PixelRect)> = set
+            .visible
+            .par_iter()
+            .enumerate()
+            .with_min_len(1024)
+            .filter_map(|(i, (b, bounds))| {
+                let world = Aabb::new(
+                    grid.voxel_to_world(bounds.min),
+                    grid.voxel_to_world(bounds.max),
+                );
+                let fp = footprint(frame, camera, &world)?;
+                let fp = intersect(&fp, &rect)?;
+                Some((key(*b), i as u32, fp))
+            })
+            .collect();
+        order.par_sort_unstable_by_key(|&(k, i, _)| (k, i));
         let bricks: Vec<QueuedBrick> = order
             .iter()
             .map(|&(_, i, fp)| QueuedBrick {
