@@ -388,3 +388,62 @@ fn analytic_normals_agree_on_a_plane_and_differ_on_a_sphere() {
     let b = render(&sphere, &cam, &tf, &o(IsoNormals::Analytic));
     assert!(common::compare_images(&a.rgb, &b.rgb, 1).over > 0);
 }
+
+/// The frame's proxy depths (where each pixel's walk starts, and which
+/// pixels cannot hit) change nothing: with skipping the image and counts
+/// equal those of the walk over every cell without it, from outside and
+/// inside the volume, under both projections, with a clip box, and for
+/// every renderer.
+#[test]
+fn starting_rays_at_the_proxy_depth_finds_the_same_hits() {
+    let s = SphereOnPlane::new();
+    let scene = s.scene();
+    let tf = white();
+    let inside = Vec3::new(40.0, 25.0, 44.0);
+    let cameras = [
+        (Vec3::new(70.0, 55.0, 80.0), Projection::Perspective, false),
+        (
+            Vec3::new(-30.0, 12.0, 20.0),
+            Projection::Orthographic,
+            false,
+        ),
+        (inside, Projection::Perspective, false),
+        (Vec3::new(10.0, 70.0, -40.0), Projection::Perspective, true),
+    ];
+    for (pos, projection, clipped) in cameras {
+        let mut cam = Camera::look_at(pos, s.centre, 90, 70);
+        cam.projection = projection;
+        let mut o = lit_options(vec![Vec3::new(0.3, 1.0, 0.2)], false);
+        if clipped {
+            o.clip.clip_box = Some((Vec3::new(0.0, 0.0, 0.0), Vec3::new(48.0, 32.0, 26.0)));
+        }
+        let walked = render(
+            &scene,
+            &cam,
+            &tf,
+            &RenderOptions {
+                ess: false,
+                ..o.clone()
+            },
+        );
+        assert!(
+            walked.stats.covered > 500,
+            "{pos}: {}",
+            walked.stats.covered
+        );
+        let mut renderers: Vec<AnyRenderer> = vec![
+            RendererKind::Serial.renderer(1).expect("serial"),
+            Box::new(TiledRenderer::new(2, 16).expect("tiles")),
+            RendererKind::Object.renderer(2).expect("object"),
+        ];
+        for r in &mut renderers {
+            let f = r.render(&scene, &cam, &tf, &o).expect("render");
+            let d = common::compare_images(&walked.rgb, &f.rgb, 1);
+            assert_eq!(d.over, 0, "{} from {pos} ({projection:?}): {d}", r.name());
+            assert_eq!(f.stats.rays_in_volume, walked.stats.rays_in_volume, "{pos}");
+            assert_eq!(f.stats.covered, walked.stats.covered, "{pos}");
+            // The proxy starts the walks near the surface.
+            assert!(f.stats.samples < walked.stats.samples, "{pos}");
+        }
+    }
+}

@@ -316,6 +316,56 @@ impl CameraFrame {
         };
         (rect.x0 < rect.x1 && rect.y0 < rect.y1).then_some(rect)
     }
+    /// The pixels whose rays can meet the box `[lo, hi]`: a bounding
+    /// rectangle of its projection from the view-space extents of its
+    /// centre (cheaper than projecting the eight corners, and no smaller),
+    /// grown by one pixel and clamped to the image; the whole image when
+    /// the box reaches the eye plane, `None` when it is wholly behind the
+    /// camera or off screen.
+    pub fn box_rect(&self, lo: Vec3, hi: Vec3) -> Option<PixelRect> {
+        let half = 0.5 * (hi - lo);
+        let c = 0.5 * (lo + hi) - self.position;
+        let (cx, cy, cz) = (c.dot(self.right), c.dot(self.up), c.dot(self.forward));
+        let radius = |axis: Vec3| (half * axis.abs()).element_sum();
+        let (rx, ry, rz) = (radius(self.right), radius(self.up), radius(self.forward));
+        let ((sx0, sx1), (sy0, sy1)) = match self.projection {
+            Projection::Perspective => {
+                if cz - rz <= 1e-6 {
+                    return (cz + rz > 0.0).then(|| self.full_rect());
+                }
+                // x/z over the box's x in [c − r, c + r], z in [cz − rz,
+                // cz + rz]: each end is reached at a corner of that range.
+                let range = |c: f32, r: f32| {
+                    let (a, b) = (c - r, c + r);
+                    (
+                        a / if a >= 0.0 { cz + rz } else { cz - rz },
+                        b / if b >= 0.0 { cz - rz } else { cz + rz },
+                    )
+                };
+                (range(cx, rx), range(cy, ry))
+            }
+            Projection::Orthographic => {
+                if cz + rz < 0.0 {
+                    return None;
+                }
+                let d = self.distance;
+                (
+                    ((cx - rx) / d, (cx + rx) / d),
+                    ((cy - ry) / d, (cy + ry) / d),
+                )
+            }
+        };
+        let hx = self.half_height * self.aspect;
+        let hy = self.half_height;
+        let (w, h) = (self.width, self.height);
+        let rect = PixelRect {
+            x0: ((sx0 / hx + 1.0) * 0.5 * w - 1.0).floor().clamp(0.0, w) as u32,
+            x1: ((sx1 / hx + 1.0) * 0.5 * w + 1.0).ceil().clamp(0.0, w) as u32,
+            y0: ((1.0 - sy1 / hy) * 0.5 * h - 1.0).floor().clamp(0.0, h) as u32,
+            y1: ((1.0 - sy0 / hy) * 0.5 * h + 1.0).ceil().clamp(0.0, h) as u32,
+        };
+        (rect.x0 < rect.x1 && rect.y0 < rect.y1).then_some(rect)
+    }
 
     /// The pixels whose rays can hit `bounds`: the projected box's rectangle
     /// grown by one pixel, clamped to the image; the whole image when part of
@@ -366,6 +416,43 @@ mod tests {
         // Pixel (0, 0) is top-left: ray goes left (-x) and up (+y).
         let r = f.ray(0, 0);
         assert!(r.dir.x < 0.0 && r.dir.y > 0.0);
+    }
+
+    #[test]
+    fn a_box_rect_holds_its_corners_projections() {
+        let mut rng = fastrand::Rng::with_seed(7);
+        for proj in [Projection::Perspective, Projection::Orthographic] {
+            let mut cam =
+                Camera::look_at(Vec3::new(3.0, 4.0, 12.0), Vec3::new(0.5, -1.0, 0.0), 64, 48);
+            cam.projection = proj;
+            let f = cam.frame().unwrap();
+            let mut inside = 0;
+            for _ in 0..500 {
+                let lo = Vec3::new(rng.f32(), rng.f32(), rng.f32()) * 12.0 - 6.0;
+                let hi = lo + Vec3::new(rng.f32(), rng.f32(), rng.f32()) * 2.0;
+                let rect = f.box_rect(lo, hi);
+                let corners = Aabb::new(lo, hi).corners();
+                if let Some(rect) = rect
+                    && rect == f.full_rect()
+                {
+                    continue;
+                }
+                for c in corners {
+                    let Some((x, y)) = f.project(c) else {
+                        panic!("{proj:?}: corner {c} not in front, rect {rect:?}");
+                    };
+                    if (0.0..64.0).contains(&x) && (0.0..48.0).contains(&y) {
+                        let r = rect.expect("a corner on screen");
+                        assert!(
+                            r.contains(x as u32, y as u32),
+                            "{proj:?} {c}: {x},{y} not in {r:?}"
+                        );
+                        inside += 1;
+                    }
+                }
+            }
+            assert!(inside > 500, "{proj:?}: {inside}");
+        }
     }
 
     #[test]

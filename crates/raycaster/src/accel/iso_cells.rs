@@ -23,6 +23,8 @@ use crate::volume::{AnyVolume, Volume, VolumeVisitor};
 #[derive(Debug, Clone)]
 pub struct IsoCells {
     side: u32,
+    /// Macrocells per axis.
+    count: UVec3,
     words: usize,
     /// Per macrocell: the index of its bit sets in `bits`, or `u32::MAX`
     /// for a macrocell the coarse level calls empty.
@@ -154,6 +156,7 @@ impl IsoCells {
             });
         IsoCells {
             side: m,
+            count: n,
             words,
             slot,
             bits,
@@ -181,6 +184,30 @@ impl IsoCells {
         })
     }
 
+    /// The lower corners of the interpolation cells that straddle the iso
+    /// value, macrocell by macrocell.
+    pub fn straddling_cells(&self) -> Vec<UVec3> {
+        let (m, n) = (self.side, self.count);
+        let mut out = Vec::with_capacity(self.straddling_count());
+        for (i, &s) in self.slot.iter().enumerate() {
+            if s == u32::MAX {
+                continue;
+            }
+            let i = i as u32;
+            let origin = UVec3::new(i / (n.y * n.z), (i / n.z) % n.y, i % n.z) * m;
+            let at = s as usize * 2 * self.words;
+            for (w, &word) in self.bits[at..at + self.words].iter().enumerate() {
+                let mut bits = word;
+                while bits != 0 {
+                    let b = w as u32 * 64 + bits.trailing_zeros();
+                    bits &= bits - 1;
+                    origin_push(&mut out, origin, b, m);
+                }
+            }
+        }
+        out
+    }
+
     /// How many interpolation cells straddle the iso value.
     pub fn straddling_count(&self) -> usize {
         self.bits
@@ -193,6 +220,13 @@ impl IsoCells {
             })
             .sum()
     }
+}
+
+/// Pushes the cell with bit `b` (`(x·m + y)·m + z`) of the macrocell at
+/// `origin`.
+#[inline(always)]
+fn origin_push(out: &mut Vec<UVec3>, origin: UVec3, b: u32, m: u32) {
+    out.push(origin + UVec3::new(b / (m * m), (b / m) % m, b % m));
 }
 
 #[cfg(test)]
@@ -215,6 +249,7 @@ mod tests {
                 let skip = SkipGrid::build(&cells, |lo, hi| lo <= iso && iso <= hi);
                 let masks = IsoCells::build(&volume, &cells, &skip, iso);
                 let mut straddling = 0;
+                let mut listed = Vec::new();
                 for x in 0..18 {
                     for y in 0..13 {
                         for z in 0..22 {
@@ -229,6 +264,9 @@ mod tests {
                                 ((mc.x * cells.count.y + mc.y) * cells.count.z + mc.z) as usize;
                             let want = lo < iso && iso <= hi;
                             straddling += want as usize;
+                            if want {
+                                listed.push(cell.to_array());
+                            }
                             match masks.masks(index) {
                                 Some(m) => {
                                     let local = cell - mc * side;
@@ -244,6 +282,13 @@ mod tests {
                 }
                 assert!(straddling > 0);
                 assert_eq!(masks.straddling_count(), straddling);
+                let mut got: Vec<[u32; 3]> = masks
+                    .straddling_cells()
+                    .iter()
+                    .map(|c| c.to_array())
+                    .collect();
+                got.sort_unstable();
+                assert_eq!(got, listed, "side {side}, iso {iso}");
             }
         }
     }

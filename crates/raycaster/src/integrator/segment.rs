@@ -120,6 +120,29 @@ impl RaySegment {
         Some(seg)
     }
 
+    /// The ray clipped to the grid's box but keeping no sample (`None` when
+    /// it misses the box): a ray known to see nothing, counted as entering
+    /// the volume without the cost of preparing it. Only its box interval
+    /// and world direction are set; with no sample to take, nothing reads
+    /// the rest.
+    #[inline]
+    pub fn entering(grid: &Grid, ray: &Ray, step: f32) -> Option<Self> {
+        let (t_in, t_out) = grid.bounds().intersect(ray)?;
+        Some(RaySegment {
+            origin: Vec3::ZERO,
+            dir: Vec3::ZERO,
+            inv_dir: Vec3::ZERO,
+            world_dir: ray.dir,
+            t_in,
+            t_out,
+            t0: t_in,
+            step,
+            inv_step: 0.0,
+            first: 0,
+            count: 0,
+        })
+    }
+
     /// Whether clipping (or jitter) left the ray without a sample.
     #[inline(always)]
     pub fn is_empty(&self) -> bool {

@@ -38,12 +38,27 @@ pub struct FrameJob<'a, V: Volume> {
 impl<V: Volume> FrameJob<'_, V> {
     /// The ray of pixel `(i, j)` clipped to the volume, `None` when it
     /// misses: jittered and clipped as the frame says, the one place every
-    /// schedule gets its rays from.
+    /// schedule gets its rays from. With the frame's proxy depths (exact
+    /// iso), the part searched starts where the ray first meets a cell
+    /// that can hold the surface, and a ray that meets none keeps no
+    /// sample (it still counts as entering the volume).
     #[inline]
     pub fn segment(&self, i: u32, j: u32) -> Option<RaySegment> {
+        let grid = self.ctx.volume.grid();
+        let ray = self.plan.camera.ray(i, j);
+        if let Some(proxy) = &self.plan.proxy {
+            let t = proxy.at(i, j);
+            if t == f32::INFINITY {
+                return RaySegment::entering(grid, &ray, self.plan.step);
+            }
+            let mut seg =
+                RaySegment::with(grid, &ray, self.plan.step, 0.0, self.plan.clip.as_ref())?;
+            seg.t_in = seg.t_in.max(t);
+            return Some(seg);
+        }
         RaySegment::with(
-            self.ctx.volume.grid(),
-            &self.plan.camera.ray(i, j),
+            grid,
+            &ray,
             self.plan.step,
             self.plan.jitter.map_or(0.0, |seed| jitter(i, j, seed)),
             self.plan.clip.as_ref(),
@@ -142,7 +157,8 @@ fn render_frame<S: Schedule>(
 ) -> Result<Option<Frame>> {
     let start = Instant::now();
     let FrameInputs { scene, options, .. } = inputs;
-    let plan = FramePlan::new(cache, scene, inputs.camera, inputs.tf, options)?;
+    let mut plan = FramePlan::new(cache, scene, inputs.camera, inputs.tf, options)?;
+    plan.draw_proxy(scene, options);
     let mut film = Film::new(plan.width, plan.height, options.background);
 
     struct WithVolume<'a, S> {

@@ -30,6 +30,7 @@ pub mod front;
 pub mod object;
 mod options;
 pub(crate) mod plan;
+pub mod proxy;
 mod serial;
 mod tiled;
 

@@ -6,6 +6,7 @@
 
 use std::sync::Arc;
 
+use super::proxy::ProxyDepth;
 use crate::accel::SkipGrid;
 use crate::camera::{Camera, CameraFrame, PixelRect};
 use crate::clip::ClipRegion;
@@ -181,6 +182,10 @@ pub struct FramePlan {
     pub clip: Option<ClipRegion>,
     /// The jitter seed when samples are jittered.
     pub jitter: Option<u32>,
+    /// In exact iso mode with empty-space skipping: where each pixel's ray
+    /// first meets a cell that can hold the surface (its walk starts
+    /// there; a pixel it calls empty cannot hit).
+    pub proxy: Option<ProxyDepth>,
 }
 
 impl FramePlan {
@@ -246,18 +251,37 @@ impl FramePlan {
         }
         let clip = options.clip.region(grid);
         let prepared = cache.get(scene, tf, step, options, clip.as_ref());
+        let rect = frame.screen_rect(&grid.bounds());
         Ok(FramePlan {
+            proxy: None,
             clip,
             jitter: (options.jitter && options.mode != crate::integrator::RenderMode::Iso)
                 .then_some(options.seed),
             lights,
-            rect: frame.screen_rect(&grid.bounds()),
+            rect,
             camera: frame,
             step,
             prepared,
             width: camera.width,
             height: camera.height,
         })
+    }
+
+    /// Draws the frame's proxy depths ([`FramePlan::proxy`]) when the
+    /// frame is exact iso with skipping; the frame driver calls it for the
+    /// rays it casts from the camera.
+    pub fn draw_proxy(&mut self, scene: &Scene, options: &RenderOptions) {
+        self.proxy = match self.prepared.1.iso_cells() {
+            Some(cells) if options.ess && options.mode == crate::integrator::RenderMode::Iso => {
+                Some(ProxyDepth::build(
+                    &self.camera,
+                    self.rect,
+                    scene.grid(),
+                    cells,
+                ))
+            }
+            _ => None,
+        };
     }
 
     /// The integrators' view of this frame for the concretely typed

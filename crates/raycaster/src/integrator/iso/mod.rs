@@ -93,13 +93,14 @@ impl Integrator for IsoState {
             return 0;
         }
         let (ctx, seg) = (span.ctx, span.seg);
-        // The first piece starts where the ray enters the (clipped) box;
-        // frames with iso never jitter, so sample `first`'s parameter is at
-        // or after it.
+        // The first piece starts where the search starts (the clipped
+        // box's entry, or the frame's proxy depth); frames with iso never
+        // jitter, so sample `first`'s parameter is at or after the box
+        // entry. A piece before the search's start is skipped.
         let t0 = if span.start <= seg.first {
             seg.t_in
         } else {
-            seg.t(span.start)
+            seg.t(span.start).max(seg.t_in)
         };
         let t1 = if span.end >= seg.count {
             seg.t_out
