@@ -69,23 +69,26 @@ impl Aabb {
     /// makes the ray miss otherwise, so rays in a face plane still hit.
     #[inline]
     pub fn intersect(&self, ray: &Ray) -> Option<(f32, f32)> {
-        let mut t_in = 0.0f32;
-        let mut t_out = f32::INFINITY;
-        for a in 0..3 {
-            let (o, d) = (ray.origin[a], ray.dir[a]);
+        // One axis at a time, spelled out: as a loop indexing the vectors by
+        // axis it compiled to several times the instructions.
+        #[inline(always)]
+        fn slab(o: f32, d: f32, lo: f32, hi: f32, t: &mut (f32, f32)) -> bool {
             if d == 0.0 {
-                if o < self.min[a] || o > self.max[a] {
-                    return None;
-                }
-                continue;
+                return !(o < lo || o > hi);
             }
             let inv = 1.0 / d;
-            let t0 = (self.min[a] - o) * inv;
-            let t1 = (self.max[a] - o) * inv;
-            t_in = t_in.max(t0.min(t1));
-            t_out = t_out.min(t0.max(t1));
+            let t0 = (lo - o) * inv;
+            let t1 = (hi - o) * inv;
+            t.0 = t.0.max(t0.min(t1));
+            t.1 = t.1.min(t0.max(t1));
+            true
         }
-        (t_in <= t_out).then_some((t_in, t_out))
+        let (o, d) = (ray.origin, ray.dir);
+        let mut t = (0.0f32, f32::INFINITY);
+        let inside = slab(o.x, d.x, self.min.x, self.max.x, &mut t)
+            && slab(o.y, d.y, self.min.y, self.max.y, &mut t)
+            && slab(o.z, d.z, self.min.z, self.max.z, &mut t);
+        (inside && t.0 <= t.1).then_some(t)
     }
 
     /// The exit parameter of a ray known to start inside the box.
