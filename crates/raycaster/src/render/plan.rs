@@ -272,7 +272,11 @@ impl FramePlan {
     /// rays it casts from the camera.
     pub fn draw_proxy(&mut self, scene: &Scene, options: &RenderOptions) {
         self.proxy = match self.prepared.1.iso_cells() {
-            Some(cells) if options.ess && options.mode == crate::integrator::RenderMode::Iso => {
+            Some(cells)
+                if options.ess
+                    && options.mode == crate::integrator::RenderMode::Iso
+                    && ProxyDepth::pays(cells, &self.rect) =>
+            {
                 Some(ProxyDepth::build(
                     &self.camera,
                     self.rect,

@@ -28,6 +28,12 @@ use crate::accel::IsoCells;
 use crate::camera::{CameraFrame, PixelRect, Projection};
 use crate::volume::Grid;
 
+/// At most this many cells are drawn ([`ProxyDepth::pays`]).
+const MAX_BOXES: u64 = 1 << 23;
+
+/// At most this many cells per pixel of the screen rectangle are drawn.
+const BOXES_PER_PIXEL: u64 = 4;
+
 /// How far (voxels) each straddling cell's box is grown on every side.
 const MARGIN: f32 = 0.01;
 
@@ -57,6 +63,16 @@ pub struct ProxyDepth {
 }
 
 impl ProxyDepth {
+    /// Whether drawing `cells` for the pixels of `rect` is worth it: not
+    /// when the surface has many more straddling cells than the rectangle
+    /// has pixels (a fine surface in a small preview, or a huge volume),
+    /// where listing and drawing them would cost more than the walks they
+    /// shorten, and the list alone could take much memory.
+    pub fn pays(cells: &IsoCells, rect: &PixelRect) -> bool {
+        let n = cells.straddling_count() as u64;
+        n <= MAX_BOXES && n <= BOXES_PER_PIXEL * rect.area()
+    }
+
     /// Draws the straddling cells of `cells` (a grid `grid`) as seen by
     /// `frame`, over the pixels of `rect`.
     pub fn build(frame: &CameraFrame, rect: PixelRect, grid: &Grid, cells: &IsoCells) -> Self {
