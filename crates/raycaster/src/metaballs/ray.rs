@@ -87,6 +87,33 @@ struct Met {
 pub struct Scratch {
     heap: BinaryHeap<Reverse<Event>>,
     met: Vec<Met>,
+    /// The candidates for [`first_hit`] called without a tile's.
+    cands: Vec<Cand>,
+}
+
+/// A candidate as a tile's rays test it: what the test reads, copied once
+/// per tile into one array in list order (no indirection per ray).
+#[derive(Debug, Clone, Copy)]
+pub struct Cand {
+    center: DVec3,
+    r2: f64,
+    t_lo: f64,
+    ball: u32,
+}
+
+/// A tile's `candidates` (indices into `balls`, in `t_lo` order) as
+/// [`Cand`]s, into `out`.
+pub fn tile_cands(balls: &[FrameBall], candidates: &[u32], out: &mut Vec<Cand>) {
+    out.clear();
+    out.extend(candidates.iter().map(|&k| {
+        let fb = &balls[k as usize];
+        Cand {
+            center: fb.center,
+            r2: fb.r2,
+            t_lo: fb.t_lo,
+            ball: k,
+        }
+    }));
 }
 
 /// What a frame's rays share.
@@ -138,6 +165,20 @@ fn peak_of(kernel: Kernel, h2: f64, inv_r2: f64) -> f64 {
 /// The first `t >= 0` where the field of the `candidates` (indices into
 /// `p.balls`, in `t_lo` order) crosses the threshold along `ray`.
 pub fn first_hit(p: &RayParams<'_>, ray: &Ray, candidates: &[u32], s: &mut Scratch) -> RayResult {
+    let mut cands = std::mem::take(&mut s.cands);
+    tile_cands(p.balls, candidates, &mut cands);
+    let r = first_hit_tile(p, ray, &cands, s);
+    s.cands = cands;
+    r
+}
+
+/// [`first_hit`] for a tile's candidates made by [`tile_cands`].
+pub fn first_hit_tile(
+    p: &RayParams<'_>,
+    ray: &Ray,
+    candidates: &[Cand],
+    s: &mut Scratch,
+) -> RayResult {
     match p.kernel {
         Kernel::Wyvill => first_hit_n::<6, true>(p, ray, candidates, s),
         Kernel::Murakami => first_hit_n::<4, true>(p, ray, candidates, s),
@@ -153,7 +194,7 @@ pub fn first_hit(p: &RayParams<'_>, ray: &Ray, candidates: &[u32], s: &mut Scrat
 fn first_hit_n<const N: usize, const BOUND: bool>(
     p: &RayParams<'_>,
     ray: &Ray,
-    candidates: &[u32],
+    candidates: &[Cand],
     s: &mut Scratch,
 ) -> RayResult {
     s.heap.clear();
@@ -177,9 +218,7 @@ fn first_hit_n<const N: usize, const BOUND: bool>(
     let mut next = 0usize;
     loop {
         // Take every candidate that may enter before the next event.
-        while next < candidates.len() {
-            let k = candidates[next];
-            let fb = &p.balls[k as usize];
+        while let Some(fb) = candidates.get(next) {
             if let Some(e) = s.heap.peek()
                 && fb.t_lo > e.0.t()
             {
@@ -198,13 +237,14 @@ fn first_hit_n<const N: usize, const BOUND: bool>(
                 continue;
             }
             let slot = s.met.len() as u32;
+            let k = fb.ball;
             s.met.push(Met {
                 ball: k,
                 b,
                 h2,
-                inv_r2: fb.inv_r2,
+                inv_r2: p.balls[k as usize].inv_r2,
                 t1,
-                peak: peak_of(kernel, h2, fb.inv_r2),
+                peak: peak_of(kernel, h2, p.balls[k as usize].inv_r2),
                 epoch: u32::MAX,
                 kp: [0.0; MAX_TERMS],
             });
@@ -473,10 +513,12 @@ mod tests {
                     lights: &[],
                 };
                 let (mut s, mut hits) = (Scratch::default(), 0);
+                let mut tile = Vec::new();
                 for j in 0..40 {
                     for i in 0..48 {
                         let ray = f.ray(i, j);
-                        let cands = lists.candidates(i / 16, j / 16);
+                        tile_cands(&lists.balls, lists.candidates(i / 16, j / 16), &mut tile);
+                        let cands = &tile;
                         let with = match kernel {
                             Kernel::Wyvill => first_hit_n::<6, true>(&p, &ray, cands, &mut s),
                             Kernel::Murakami => first_hit_n::<4, true>(&p, &ray, cands, &mut s),

@@ -249,13 +249,15 @@ fn render_tile(job: &TileJob<'_>, (tx, ty): (u32, u32)) -> (Vec<u8>, u64) {
     let rect: PixelRect = job.lists.rect(tx, ty);
     let cands = job.lists.candidates(tx, ty);
     let mut scratch = Scratch::default();
+    let mut tile = Vec::new();
+    ray::tile_cands(job.params.balls, cands, &mut tile);
     let mut rgb = Vec::with_capacity(3 * rect.area() as usize);
     let mut met = 0;
     let mut counts = RayCounts::default();
     for j in rect.y0..rect.y1 {
         for i in rect.x0..rect.x1 {
             let r = job.frame.ray(i, j);
-            let res = ray::first_hit(job.params, &r, cands, &mut scratch);
+            let res = ray::first_hit_tile(job.params, &r, &tile, &mut scratch);
             met += res.met as u64;
             let px = match res.t {
                 Some(t) => {
