@@ -299,6 +299,14 @@ impl CameraFrame {
                 (((x - r) / d, (x + r) / d), ((y - r) / d, (y + r) / d))
             }
         };
+        self.window_rect((sx0, sx1), (sy0, sy1))
+    }
+
+    /// The pixels whose rays pass through the window `[sx0, sx1] × [sy0,
+    /// sy1]` of the image plane at unit distance (orthographic: at the
+    /// camera's distance, already divided by it), grown by one pixel and
+    /// clamped to the image; `None` when empty.
+    fn window_rect(&self, (sx0, sx1): (f64, f64), (sy0, sy1): (f64, f64)) -> Option<PixelRect> {
         let (w, h) = (self.width as f64, self.height as f64);
         let hx = self.half_height as f64 * self.aspect as f64;
         let hy = self.half_height as f64;
@@ -316,6 +324,7 @@ impl CameraFrame {
         };
         (rect.x0 < rect.x1 && rect.y0 < rect.y1).then_some(rect)
     }
+
     /// The pixels whose rays can meet the box `[lo, hi]`: a bounding
     /// rectangle of its projection from the view-space extents of its
     /// centre (cheaper than projecting the eight corners, and no smaller),
@@ -355,16 +364,8 @@ impl CameraFrame {
                 )
             }
         };
-        let hx = self.half_height * self.aspect;
-        let hy = self.half_height;
-        let (w, h) = (self.width, self.height);
-        let rect = PixelRect {
-            x0: ((sx0 / hx + 1.0) * 0.5 * w - 1.0).floor().clamp(0.0, w) as u32,
-            x1: ((sx1 / hx + 1.0) * 0.5 * w + 1.0).ceil().clamp(0.0, w) as u32,
-            y0: ((1.0 - sy1 / hy) * 0.5 * h - 1.0).floor().clamp(0.0, h) as u32,
-            y1: ((1.0 - sy0 / hy) * 0.5 * h + 1.0).ceil().clamp(0.0, h) as u32,
-        };
-        (rect.x0 < rect.x1 && rect.y0 < rect.y1).then_some(rect)
+        let wide = |(a, b): (f32, f32)| (a as f64, b as f64);
+        self.window_rect(wide((sx0, sx1)), wide((sy0, sy1)))
     }
 
     /// The pixels whose rays can hit `bounds`: the projected box's rectangle

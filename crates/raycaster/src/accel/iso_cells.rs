@@ -128,8 +128,7 @@ impl IsoCells {
             .zip(occupied.par_iter())
             .for_each(|(out, &i)| {
                 let (straddle, above) = out.split_at_mut(words);
-                let c = UVec3::new(i / (n.y * n.z), (i / n.z) % n.y, i % n.z);
-                let origin = c * m;
+                let origin = macrocell_of(i, n) * m;
                 for x in 0..m {
                     for y in 0..m {
                         for z in 0..m {
@@ -193,15 +192,14 @@ impl IsoCells {
             if s == u32::MAX {
                 continue;
             }
-            let i = i as u32;
-            let origin = UVec3::new(i / (n.y * n.z), (i / n.z) % n.y, i % n.z) * m;
+            let origin = macrocell_of(i as u32, n) * m;
             let at = s as usize * 2 * self.words;
             for (w, &word) in self.bits[at..at + self.words].iter().enumerate() {
                 let mut bits = word;
                 while bits != 0 {
                     let b = w as u32 * 64 + bits.trailing_zeros();
                     bits &= bits - 1;
-                    origin_push(&mut out, origin, b, m);
+                    out.push(origin + UVec3::new(b / (m * m), (b / m) % m, b % m));
                 }
             }
         }
@@ -222,11 +220,11 @@ impl IsoCells {
     }
 }
 
-/// Pushes the cell with bit `b` (`(x·m + y)·m + z`) of the macrocell at
-/// `origin`.
-#[inline(always)]
-fn origin_push(out: &mut Vec<UVec3>, origin: UVec3, b: u32, m: u32) {
-    out.push(origin + UVec3::new(b / (m * m), (b / m) % m, b % m));
+/// The coordinates of the macrocell with index `i` in a grid of `n`
+/// macrocells (z fastest, as [`MacrocellGrid::index`]).
+#[inline]
+fn macrocell_of(i: u32, n: UVec3) -> UVec3 {
+    UVec3::new(i / (n.y * n.z), (i / n.z) % n.y, i % n.z)
 }
 
 #[cfg(test)]

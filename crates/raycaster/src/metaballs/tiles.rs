@@ -14,6 +14,7 @@ use glam::{DVec3, Vec3};
 use super::balls::Balls;
 use crate::camera::{CameraFrame, PixelRect, Projection};
 use crate::error::{Error, Result};
+use crate::render::bins::Bins;
 
 /// A ball as one frame sees it.
 #[derive(Debug, Clone, Copy)]
@@ -44,8 +45,8 @@ pub struct TileLists {
     height: u32,
     /// The frame's balls (those not wholly behind the eye), by `t_lo`.
     pub balls: Vec<FrameBall>,
-    offsets: Vec<usize>,
-    items: Vec<u32>,
+    /// Per tile (row-major), its candidates.
+    lists: Bins,
 }
 
 impl TileLists {
@@ -85,40 +86,23 @@ impl TileLists {
         }
         visible.sort_unstable_by(|a, b| a.0.total_cmp(&b.0).then(a.1.cmp(&b.1)));
 
-        // Pass 1: count.
-        let mut offsets = vec![0usize; (cols * rows) as usize + 1];
-        for (_, _, [x0, y0, x1, y1]) in &visible {
-            for ty in *y0..=*y1 {
-                let row = (ty * cols) as usize;
-                for c in &mut offsets[row + *x0 as usize..=row + *x1 as usize] {
-                    *c += 1;
-                }
-            }
-        }
-        let mut total = 0usize;
-        for o in offsets.iter_mut() {
-            let c = *o;
-            *o = total;
-            total += c;
-        }
         if visible.len() > u32::MAX as usize {
             return Err(Error::TooLarge {
                 path: Default::default(),
                 what: format!("{} balls in one frame", visible.len()),
             });
         }
-        // Pass 2: fill, in t_lo order.
-        let mut items = vec![0u32; total];
-        let mut cursor = offsets.clone();
-        let mut frame_balls = Vec::with_capacity(visible.len());
-        for (k, (t_lo, i, [x0, y0, x1, y1])) in visible.iter().enumerate() {
-            for ty in *y0..=*y1 {
-                let row = (ty * cols) as usize;
-                for c in &mut cursor[row + *x0 as usize..=row + *x1 as usize] {
-                    items[*c] = k as u32;
-                    *c += 1;
+        // The lists, in t_lo order.
+        let lists = Bins::build((cols * rows) as usize, visible.len(), |k, put| {
+            let [x0, y0, x1, y1] = visible[k].2;
+            for ty in y0..=y1 {
+                for tx in x0..=x1 {
+                    put((ty * cols + tx) as usize);
                 }
             }
+        });
+        let mut frame_balls = Vec::with_capacity(visible.len());
+        for (t_lo, i, _) in &visible {
             let b = balls.as_slice()[*i as usize];
             let r = b.radius as f64;
             frame_balls.push(FrameBall {
@@ -136,15 +120,13 @@ impl TileLists {
             width,
             height,
             balls: frame_balls,
-            offsets,
-            items,
+            lists,
         })
     }
 
     /// The candidates of tile `(tx, ty)`, by `t_lo`.
     pub fn candidates(&self, tx: u32, ty: u32) -> &[u32] {
-        let k = (ty * self.cols + tx) as usize;
-        &self.items[self.offsets[k]..self.offsets[k + 1]]
+        self.lists.get((ty * self.cols + tx) as usize)
     }
 
     /// The pixels of tile `(tx, ty)`.
@@ -159,7 +141,7 @@ impl TileLists {
 
     /// Entries over all lists.
     pub fn entries(&self) -> usize {
-        self.items.len()
+        self.lists.entries()
     }
 }
 

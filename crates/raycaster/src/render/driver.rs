@@ -46,23 +46,21 @@ impl<V: Volume> FrameJob<'_, V> {
     pub fn segment(&self, i: u32, j: u32) -> Option<RaySegment> {
         let grid = self.ctx.volume.grid();
         let ray = self.plan.camera.ray(i, j);
-        if let Some(proxy) = &self.plan.proxy {
-            let t = proxy.at(i, j);
-            if t == f32::INFINITY {
-                return RaySegment::entering(grid, &ray, self.plan.step);
-            }
-            let mut seg =
-                RaySegment::with(grid, &ray, self.plan.step, 0.0, self.plan.clip.as_ref())?;
-            seg.t_in = seg.t_in.max(t);
-            return Some(seg);
+        let start = self.plan.proxy.as_ref().map(|p| p.at(i, j));
+        if start == Some(f32::INFINITY) {
+            return RaySegment::entering(grid, &ray, self.plan.step);
         }
-        RaySegment::with(
+        let mut seg = RaySegment::with(
             grid,
             &ray,
             self.plan.step,
             self.plan.jitter.map_or(0.0, |seed| jitter(i, j, seed)),
             self.plan.clip.as_ref(),
-        )
+        )?;
+        if let Some(t) = start {
+            seg.t_in = seg.t_in.max(t);
+        }
+        Some(seg)
     }
 }
 

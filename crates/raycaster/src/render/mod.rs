@@ -23,6 +23,7 @@
 //! scheduling. The README compares the renderers' speed.
 
 mod any;
+pub(crate) mod bins;
 mod driver;
 pub(crate) mod film;
 mod frame;

@@ -251,14 +251,13 @@ impl FramePlan {
         }
         let clip = options.clip.region(grid);
         let prepared = cache.get(scene, tf, step, options, clip.as_ref());
-        let rect = frame.screen_rect(&grid.bounds());
         Ok(FramePlan {
             proxy: None,
             clip,
             jitter: (options.jitter && options.mode != crate::integrator::RenderMode::Iso)
                 .then_some(options.seed),
             lights,
-            rect,
+            rect: frame.screen_rect(&grid.bounds()),
             camera: frame,
             step,
             prepared,

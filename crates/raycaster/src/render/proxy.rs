@@ -24,6 +24,7 @@
 use glam::Vec3;
 use rayon::prelude::*;
 
+use super::bins::Bins;
 use crate::accel::IsoCells;
 use crate::camera::{CameraFrame, PixelRect, Projection};
 use crate::volume::Grid;
@@ -113,33 +114,20 @@ impl ProxyDepth {
                 Some((blocks, nearest_t(frame, lo, hi)))
             })
             .collect();
-        // Bin the boxes by band of block rows: count, then fill.
-        let bands = h.div_ceil(BAND) as usize;
-        let band_of = |y: u32| (y / BAND) as usize;
-        let mut start = vec![0u32; bands + 1];
-        for (r, _) in &rects {
-            for b in band_of(r.y0)..=band_of(r.y1 - 1) {
-                start[b + 1] += 1;
+        // The boxes by band of block rows.
+        let bands = Bins::build(h.div_ceil(BAND) as usize, rects.len(), |k, put| {
+            let r = rects[k].0;
+            for b in r.y0 / BAND..=(r.y1 - 1) / BAND {
+                put(b as usize);
             }
-        }
-        for b in 0..bands {
-            start[b + 1] += start[b];
-        }
-        let mut fill = start.clone();
-        let mut items = vec![0u32; start[bands] as usize];
-        for (k, (r, _)) in rects.iter().enumerate() {
-            for b in band_of(r.y0)..=band_of(r.y1 - 1) {
-                items[fill[b] as usize] = k as u32;
-                fill[b] += 1;
-            }
-        }
+        });
         depth
             .par_chunks_mut((BAND * w) as usize)
             .enumerate()
             .for_each(|(b, out)| {
                 let y0 = b as u32 * BAND;
                 let y1 = (y0 + BAND).min(h);
-                for &k in &items[start[b] as usize..start[b + 1] as usize] {
+                for &k in bands.get(b) {
                     let (r, t) = rects[k as usize];
                     for j in r.y0.max(y0)..r.y1.min(y1) {
                         let o = ((j - y0) * w + r.x0) as usize;
@@ -193,53 +181,14 @@ fn nearest_t(frame: &CameraFrame, lo: Vec3, hi: Vec3) -> f32 {
     t.max(0.0)
 }
 
-/// Stands in for an infinite inverse direction component in [`slab_entry`].
-#[cfg(test)]
-const HUGE: f32 = 1e30;
-
-#[cfg(test)]
-/// Where the ray `o + t·d` (`inv = 1/d`, finite: see [`HUGE`]) enters
-/// the box `[lo, hi]` at `t >= 0`, or `f32::INFINITY` when it misses; plain
-/// comparisons, which vectorise.
-#[inline(always)]
-fn slab_entry(lo: Vec3, hi: Vec3, o: [f32; 3], inv: [f32; 3]) -> f32 {
-    let mut near = 0.0f32;
-    let mut far = f32::INFINITY;
-    for a in 0..3 {
-        let t0 = (lo[a] - o[a]) * inv[a];
-        let t1 = (hi[a] - o[a]) * inv[a];
-        let (n, f) = if t0 < t1 { (t0, t1) } else { (t1, t0) };
-        near = if n > near { n } else { near };
-        far = if f < far { f } else { far };
-    }
-    if near <= far { near } else { f32::INFINITY }
-}
-
 #[cfg(test)]
 mod tests {
     use super::*;
     use crate::accel::{MacrocellGrid, SkipGrid};
     use crate::camera::Camera;
+    use crate::geometry::Aabb;
     use crate::volume::AnyVolume;
     use glam::UVec3;
-
-    #[test]
-    fn entry_is_the_slab_entry_and_misses_are_infinite() {
-        let (lo, hi) = (Vec3::ZERO, Vec3::ONE);
-        let inv = |d: Vec3| d.recip().clamp(Vec3::splat(-HUGE), Vec3::splat(HUGE));
-        let entry = |lo, hi, o: Vec3, inv: Vec3| slab_entry(lo, hi, o.to_array(), inv.to_array());
-        let t = entry(lo, hi, Vec3::new(-1.0, 0.5, 0.5), inv(Vec3::X));
-        assert_eq!(t, 1.0);
-        // Inside: 0.
-        assert_eq!(entry(lo, hi, Vec3::splat(0.5), inv(Vec3::Y)), 0.0);
-        // Parallel outside the slab, and behind.
-        assert!(entry(lo, hi, Vec3::new(-1.0, 2.0, 0.5), inv(Vec3::X)).is_infinite());
-        assert!(entry(lo, hi, Vec3::new(2.0, 0.5, 0.5), inv(Vec3::X)).is_infinite());
-        // Diagonal through an edge region.
-        let d = Vec3::new(1.0, 1.0, 0.0).normalize();
-        let t = entry(lo, hi, Vec3::new(-0.5, -0.4, 0.5), inv(d));
-        assert!((t - 0.5 * 2f32.sqrt()).abs() < 1e-6, "{t}");
-    }
 
     /// Every pixel's depth is at or before the nearest entry into a
     /// straddling cell's box (found here by brute force), finite wherever
@@ -272,17 +221,16 @@ mod tests {
             for j in 0..40 {
                 for i in 0..48 {
                     let ray = frame.ray(i, j);
-                    let inv = ray.dir.recip().clamp(Vec3::splat(-HUGE), Vec3::splat(HUGE));
                     let want = corners
                         .iter()
                         .map(|c| {
                             let c = c.as_vec3();
-                            slab_entry(
+                            Aabb::new(
                                 grid.voxel_to_world(c - Vec3::splat(MARGIN)),
                                 grid.voxel_to_world(c + Vec3::splat(1.0 + MARGIN)),
-                                ray.origin.to_array(),
-                                inv.to_array(),
                             )
+                            .intersect(&ray)
+                            .map_or(f32::INFINITY, |(t_in, _)| t_in)
                         })
                         .fold(f32::INFINITY, f32::min);
                     let got = proxy.at(i, j);
