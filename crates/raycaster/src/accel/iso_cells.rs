@@ -167,6 +167,12 @@ impl IsoCells {
         self.side
     }
 
+    /// Macrocells per axis.
+    #[inline(always)]
+    pub fn count(&self) -> UVec3 {
+        self.count
+    }
+
     /// The bit sets of macrocell `index` (its index in the macrocell grid),
     /// `None` when the coarse level calls it empty.
     #[inline(always)]

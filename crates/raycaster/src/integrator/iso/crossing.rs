@@ -114,19 +114,49 @@ impl CellCubic {
     pub fn first_crossing(&self, len: f32, tol: f32) -> Option<f32> {
         let g0 = self.eval(0.0);
         let side = g0 >= 0.0;
+        if self.stays_on(side, len) {
+            return None;
+        }
         let [e0, e1] = self.extrema(len);
-        let mut lo = 0.0f32;
+        let (mut lo, mut g_lo) = (0.0f32, g0);
         for hi in [e0, e1, len] {
             if hi.is_nan() {
                 continue;
             }
             let g_hi = self.eval(hi);
             if (g_hi >= 0.0) != side {
-                return Some(self.refine(lo, hi, side, tol));
+                return Some(self.refine((lo, g_lo), (hi, g_hi), side, tol));
             }
-            lo = hi;
+            (lo, g_lo) = (hi, g_hi);
         }
         None
+    }
+
+    /// A cheap proof that `g` keeps the side `side` on all of `[0, len]`,
+    /// which most cells a ray crosses without a crossing pass (they only
+    /// clip a corner of the surface's cell): the cubic's Bernstein
+    /// coefficients on the interval bound it (convex hull property), so when
+    /// all of them lie on `side` by more than `g`'s rounding error, no
+    /// evaluation of `g` there can land on the other side. False means "not
+    /// proven", and the extrema decide, as before.
+    #[inline(always)]
+    fn stays_on(&self, side: bool, len: f32) -> bool {
+        // Power coefficients on u = t/len ∈ [0, 1]: d + p1·u + p2·u² + p3·u³.
+        let p1 = self.c * len;
+        let p2 = self.b * len * len;
+        let p3 = self.a * len * len * len;
+        let d = self.d;
+        let b1 = d + p1 * (1.0 / 3.0);
+        let b2 = d + (2.0 * p1 + p2) * (1.0 / 3.0);
+        let b3 = d + p1 + p2 + p3;
+        // Each coefficient and each evaluation of g errs by a few ulps of
+        // the terms' sum; 1e-5 of it is far beyond both.
+        let margin = 1e-5 * (d.abs() + p1.abs() + p2.abs() + p3.abs());
+        if side {
+            d.min(b1).min(b2).min(b3) > margin
+        } else {
+            d.max(b1).max(b2).max(b3) < -margin
+        }
     }
 
     /// `g'(t)`.
@@ -136,12 +166,28 @@ impl CellCubic {
     }
 
     /// The crossing in `[lo, hi]`, where `g` is monotonic, `g(lo)` on
-    /// `side` and `g(hi)` not: Newton's method kept inside the shrinking
-    /// bracket (a bisection step whenever Newton would leave it), until a
-    /// step or the bracket is shorter than `tol`.
+    /// `side` and `g(hi)` not (the values at the ends given): Newton's
+    /// method kept inside the shrinking bracket (a bisection step whenever
+    /// Newton would leave it), until a step or the bracket is shorter than
+    /// `tol`.
     #[inline]
-    fn refine(&self, mut lo: f32, mut hi: f32, side: bool, tol: f32) -> f32 {
-        let mut t = 0.5 * (lo + hi);
+    fn refine(
+        &self,
+        (mut lo, g_lo): (f32, f32),
+        (mut hi, g_hi): (f32, f32),
+        side: bool,
+        tol: f32,
+    ) -> f32 {
+        // Start where the chord between the bracket's ends crosses zero: a
+        // distance field is nearly linear across a cell, so this is most of
+        // the way there and Newton needs a step or two, not a bisection's
+        // worth.
+        let chord = lo + (hi - lo) * (g_lo / (g_lo - g_hi));
+        let mut t = if chord > lo && chord < hi {
+            chord
+        } else {
+            0.5 * (lo + hi)
+        };
         for _ in 0..48 {
             let g = self.eval(t);
             if (g >= 0.0) == side {
@@ -154,15 +200,17 @@ impl CellCubic {
             }
             let d = self.slope(t);
             let newton = t - g / d;
-            let next = if newton > lo && newton < hi {
+            // A step this short means `t` is at the root (then Newton may
+            // land just outside the bracket, on `t`'s side, by rounding:
+            // bisecting would throw the answer away).
+            if (newton - t).abs() <= 0.5 * tol {
+                return newton.clamp(lo, hi);
+            }
+            t = if newton > lo && newton < hi {
                 newton
             } else {
                 0.5 * (lo + hi)
             };
-            if (next - t).abs() <= 0.5 * tol {
-                return next;
-            }
-            t = next;
         }
         t
     }

@@ -28,7 +28,7 @@ pub use crossing::CellCubic;
 use glam::{IVec3, UVec3, Vec3, Vec4};
 
 use super::{Fragment, FrameContext, Integrator, Occupancy, Span};
-use crate::accel::{CellClass, CellMasks, SkipGrid};
+use crate::accel::{CellClass, CellMasks, IsoCells, SkipGrid};
 use crate::geometry::Aabb;
 use crate::volume::{Corners, Volume};
 
@@ -268,6 +268,59 @@ impl VoxelRay {
     }
 }
 
+/// A 3D DDA's state (Amanatides–Woo): where the ray crosses the next cell
+/// plane per axis, each computed from the plane's coordinate, never
+/// accumulated, so it cannot drift.
+struct Dda {
+    /// The step per axis (±1, 0 for a direction component of ±0).
+    step: IVec3,
+    /// The parameter of the next plane per axis.
+    next: Vec3,
+}
+
+impl Dda {
+    #[inline(always)]
+    fn new(ray: &VoxelRay, cell: IVec3) -> Self {
+        let mut dda = Dda {
+            step: ray.step,
+            next: Vec3::ZERO,
+        };
+        for a in 0..3 {
+            dda.next[a] = dda.plane(ray, cell, a);
+        }
+        dda
+    }
+
+    /// The parameter where the ray leaves `cell` across its plane on axis
+    /// `a` (infinite when it does not move along `a`).
+    #[inline(always)]
+    fn plane(&self, ray: &VoxelRay, cell: IVec3, a: usize) -> f32 {
+        match self.step[a] {
+            0 => f32::INFINITY,
+            s => {
+                let plane = (cell[a] + (s > 0) as i32) as f32;
+                (plane - ray.origin[a]) * ray.inv_dir[a]
+            }
+        }
+    }
+
+    /// Steps `cell` across the nearest plane; returns its axis.
+    #[inline(always)]
+    fn advance(&mut self, cell: &mut IVec3, ray: &VoxelRay) -> usize {
+        let n = self.next;
+        let a = if n.x <= n.y && n.x <= n.z {
+            0
+        } else if n.y <= n.z {
+            1
+        } else {
+            2
+        };
+        cell[a] += self.step[a];
+        self.next[a] = self.plane(ray, *cell, a);
+        a
+    }
+}
+
 /// One walk along a ray for the first crossing.
 pub(crate) struct Search<'v, V: Volume> {
     volume: &'v V,
@@ -315,13 +368,19 @@ impl<'v, V: Volume> Search<'v, V> {
                 CellClass::Occupied { bounds, index } => (bounds, Some(index)),
             };
             let exit = bounds.exit(ray.origin, ray.inv_dir).min(t1);
-            let next = exit.max(t + nudge);
+            let mut next = exit.max(t + nudge);
             if let Some(index) = occupied {
-                let masks = fine.and_then(|f| {
-                    let m = f.masks(index)?;
-                    Some((m, (bounds.min + 0.5).as_uvec3()))
-                });
-                self.cells(ray, t, next.min(t1), masks);
+                match fine.and_then(|f| Some((f, f.masks(index)?))) {
+                    Some((fine, m)) if !m.none_straddle() => {
+                        let origin = (bounds.min + 0.5).as_uvec3();
+                        let left = self.straddling_run(ray, fine, (index, m, origin), t, t1);
+                        next = left.max(t + nudge);
+                    }
+                    masks => {
+                        let masks = masks.map(|(_, m)| (m, (bounds.min + 0.5).as_uvec3()));
+                        self.cells(ray, t, next.min(t1), masks);
+                    }
+                }
             }
             // Across an empty box the side stays: its values are all on one
             // side, and they meet the cells around it continuously.
@@ -359,23 +418,11 @@ impl<'v, V: Volume> Search<'v, V> {
             }
             return;
         }
-        let step = ray.step;
-        // The parameter where the ray crosses the next cell plane per axis,
-        // from the plane's coordinate (never accumulated).
-        let plane_t = |cell: IVec3, a: usize| -> f32 {
-            match step[a] {
-                0 => f32::INFINITY,
-                s => {
-                    let plane = (cell[a] + (s > 0) as i32) as f32;
-                    (plane - ray.origin[a]) * ray.inv_dir[a]
-                }
-            }
-        };
-        let mut next = Vec3::new(plane_t(cell, 0), plane_t(cell, 1), plane_t(cell, 2));
+        let mut dda = Dda::new(ray, cell);
         let tol = ray.tol;
         let mut tc = ta;
         loop {
-            let te = next.min_element().min(tb).max(tc);
+            let te = dda.next.min_element().min(tb).max(tc);
             self.steps += 1;
             let c = cell.as_uvec3();
             let found = match &masks {
@@ -393,18 +440,80 @@ impl<'v, V: Volume> Search<'v, V> {
             if found || te >= tb {
                 return;
             }
-            let a = if next.x <= next.y && next.x <= next.z {
-                0
-            } else if next.y <= next.z {
-                1
-            } else {
-                2
-            };
-            cell[a] += step[a];
+            let a = dda.advance(&mut cell, ray);
             if cell[a] < first[a] || cell[a] > last[a] {
                 return;
             }
-            next[a] = plane_t(cell, a);
+            tc = te;
+        }
+    }
+
+    /// The DDA over the interpolation cells from `ta` (at most to `tb`),
+    /// starting in occupied macrocell `index` with masks `m` and lowest cell
+    /// `origin`, and going on into each next macrocell the ray enters as
+    /// long as that one has straddling cells: a surface spans many
+    /// macrocells, and stepping into the next one costs a lookup, not a new
+    /// classification and DDA set-up. Opens only the straddling cells.
+    /// Returns where it stopped: `tb`, the hit, or the face into a
+    /// macrocell it does not go on into (empty, or without straddling
+    /// cells), which the caller classifies.
+    fn straddling_run(
+        &mut self,
+        ray: &VoxelRay,
+        fine: &IsoCells,
+        (mut index, mut m, mut origin): (usize, CellMasks<'_>, UVec3),
+        ta: f32,
+        tb: f32,
+    ) -> f32 {
+        if ta.is_nan() || tb.is_nan() || ta >= tb {
+            return tb;
+        }
+        let side = fine.side() as i32;
+        let count = fine.count().as_ivec3();
+        let stride = [(count.y * count.z) as isize, count.z as isize, 1];
+        let start = ray.at(ta + ray.nudge.min(0.5 * (tb - ta)));
+        let lo = origin.as_ivec3();
+        let mut cell = start
+            .floor()
+            .as_ivec3()
+            .clamp(lo, self.last.min(lo + IVec3::splat(side - 1)));
+        let mut macrocell = lo / side;
+        let mut dda = Dda::new(ray, cell);
+        let tol = ray.tol;
+        let mut tc = ta;
+        loop {
+            let te = dda.next.min_element().min(tb).max(tc);
+            self.steps += 1;
+            let c = cell.as_uvec3();
+            let local = c - origin;
+            let found = if m.straddles(local) {
+                let corners = self.volume.corners(c);
+                self.crossing(ray, c, &corners, tc, te, tol)
+            } else {
+                self.one_side(m.above(local), tc, c)
+            };
+            if found || te >= tb {
+                return te;
+            }
+            let a = dda.advance(&mut cell, ray);
+            if cell[a] < 0 || cell[a] > self.last[a] {
+                return te;
+            }
+            let into = cell[a] - macrocell[a] * side;
+            if into < 0 || into >= side {
+                // Into the next macrocell along axis `a`.
+                let s = dda.step[a];
+                macrocell[a] += s;
+                if macrocell[a] < 0 || macrocell[a] >= count[a] {
+                    return te;
+                }
+                index = index.wrapping_add_signed(s as isize * stride[a]);
+                match fine.masks(index) {
+                    Some(next) if !next.none_straddle() => m = next,
+                    _ => return te,
+                }
+                origin[a] = (macrocell[a] * side) as u32;
+            }
             tc = te;
         }
     }
