@@ -87,6 +87,7 @@ impl<'a> RayLab<'a> {
                     iso_value: lab.iso,
                     lights: &[],
                     shadows: false,
+                    light_proxies: &[],
                     iso_normals: Default::default(),
                     avg_norm: 255.0,
                     gradient_opacity: None,

@@ -6,7 +6,7 @@
 
 use std::sync::Arc;
 
-use super::proxy::ProxyDepth;
+use super::proxy::{LightProxy, ProxyDepth};
 use crate::accel::SkipGrid;
 use crate::camera::{Camera, CameraFrame, PixelRect};
 use crate::clip::ClipRegion;
@@ -186,6 +186,10 @@ pub struct FramePlan {
     /// first meets a cell that can hold the surface (its walk starts
     /// there; a pixel it calls empty cannot hit).
     pub proxy: Option<ProxyDepth>,
+    /// With shadows in exact iso mode with empty-space skipping: per light
+    /// (in the order of [`FramePlan::lights`]), how far its shadow rays
+    /// can meet a cell that can hold the surface (`None`: the whole way).
+    pub light_proxies: Vec<Option<LightProxy>>,
 }
 
 impl FramePlan {
@@ -253,6 +257,7 @@ impl FramePlan {
         let prepared = cache.get(scene, tf, step, options, clip.as_ref());
         Ok(FramePlan {
             proxy: None,
+            light_proxies: Vec::new(),
             clip,
             jitter: (options.jitter && options.mode != crate::integrator::RenderMode::Iso)
                 .then_some(options.seed),
@@ -267,7 +272,8 @@ impl FramePlan {
     }
 
     /// Draws the frame's proxy depths ([`FramePlan::proxy`]) when the
-    /// frame is exact iso with skipping; the frame driver calls it for the
+    /// frame is exact iso with skipping, and with shadows its lights'
+    /// ([`FramePlan::light_proxies`]); the frame driver calls it for the
     /// rays it casts from the camera.
     pub fn draw_proxy(&mut self, scene: &Scene, options: &RenderOptions) {
         self.proxy = match self.prepared.1.iso_cells() {
@@ -284,6 +290,21 @@ impl FramePlan {
                 ))
             }
             _ => None,
+        };
+        self.light_proxies = match self.prepared.1.iso_cells() {
+            Some(cells)
+                if options.ess
+                    && options.shadows
+                    && options.shading
+                    && options.mode == crate::integrator::RenderMode::Iso =>
+            {
+                let grid = scene.grid();
+                self.lights
+                    .iter()
+                    .map(|&l| LightProxy::build(l, grid, cells))
+                    .collect()
+            }
+            _ => Vec::new(),
         };
     }
 
@@ -327,6 +348,7 @@ impl FramePlan {
             iso_value: options.iso_value,
             lights: &self.lights,
             shadows: options.shadows,
+            light_proxies: &self.light_proxies,
             iso_normals: options.iso_normals,
             avg_norm: <V::Sample as crate::sample::Sample>::TYPE.max_value(),
             gradient_opacity: options.gradient_opacity,

@@ -20,13 +20,17 @@
 //! might still open, is never culled and never starts past it. The boxes
 //! are binned into bands of rows and the bands filled in parallel; the
 //! result does not depend on the order (a minimum per pixel).
+//!
+//! [`LightProxy`] draws the same cells as seen along a directional light, so
+//! that shadow rays, which are parallel, learn where they have passed the
+//! last cell towards the light.
 
 use glam::Vec3;
 use rayon::prelude::*;
 
 use super::bins::Bins;
 use crate::accel::IsoCells;
-use crate::camera::{CameraFrame, PixelRect, Projection};
+use crate::camera::{Camera, CameraFrame, PixelRect, Projection};
 use crate::volume::Grid;
 
 /// At most this many cells are drawn ([`ProxyDepth::pays`]).
@@ -163,6 +167,88 @@ impl ProxyDepth {
     }
 }
 
+/// The straddling cells seen from a directional light: how far a shadow
+/// ray can go towards the light before it has passed every cell that can
+/// hold the surface.
+///
+/// Shadow rays are parallel, so each is a single point in an orthographic
+/// view along the light, and a [`ProxyDepth`] drawn in that view holds,
+/// per block of that point's neighbourhood, the depth of the straddling
+/// cell nearest the light. A shadow ray from a point at depth `d` meets no
+/// straddling cell once it has climbed past that depth, so its walk ends
+/// there instead of at the volume's edge, and a walk that never enters one
+/// cannot find a crossing. Conservative as the camera's proxy is (grown
+/// boxes, one pixel of margin around each box's rectangle), so shadows are
+/// unchanged.
+#[derive(Debug, Clone)]
+pub struct LightProxy {
+    frame: CameraFrame,
+    depth: ProxyDepth,
+}
+
+/// The light's view: pixels of about this many of the grid's smallest
+/// spacings a side (a block of [`BLOCK`] pixels is then about a cell, the
+/// size of what is drawn).
+const LIGHT_PIXEL: f32 = 0.5;
+
+/// At most this many pixels a side in a light's view.
+const LIGHT_MAX_SIDE: u32 = 2048;
+
+impl LightProxy {
+    /// The straddling cells of `cells` (a grid `grid`) seen from the
+    /// directional light towards `light` (world, unit); `None` when drawing
+    /// them would not pay ([`ProxyDepth::pays`]) or the view is degenerate.
+    pub fn build(light: Vec3, grid: &Grid, cells: &IsoCells) -> Option<Self> {
+        let bounds = grid.bounds();
+        let centre = bounds.center();
+        let radius = 0.5 * (bounds.max - bounds.min).length();
+        if !(radius > 0.0 && radius.is_finite()) {
+            return None;
+        }
+        // An eye outside the bounding sphere, and an image a little larger
+        // than the sphere's disc.
+        let distance = 2.0 * radius + 1.0;
+        let half = 1.02 * radius;
+        let pixel = LIGHT_PIXEL * grid.spacing.min_element();
+        let side = ((2.0 * half / pixel).ceil() as u32).clamp(2 * BLOCK, LIGHT_MAX_SIDE);
+        let mut camera = Camera::look_at(centre + light * distance, centre, side, side);
+        camera.projection = Projection::Orthographic;
+        camera.fov_y_deg = 2.0 * (half / distance).atan().to_degrees();
+        if light.y.abs() > 0.9 {
+            camera.up = Vec3::X;
+        }
+        let frame = camera.frame()?;
+        let rect = frame.full_rect();
+        if !ProxyDepth::pays(cells, &rect) {
+            return None;
+        }
+        let depth = ProxyDepth::build(&frame, rect, grid, cells);
+        Some(LightProxy { frame, depth })
+    }
+
+    /// How far (world units) a shadow ray from world point `p` towards the
+    /// light can meet a straddling cell: none lies beyond this. Infinite
+    /// when `p` is outside the light's view (nothing is known there), zero
+    /// or less when the ray meets none.
+    #[inline]
+    pub fn reach(&self, p: Vec3) -> f32 {
+        let Some((x, y)) = self.frame.project(p) else {
+            return f32::INFINITY;
+        };
+        let rect = self.frame.full_rect();
+        if !(x >= 0.0 && y >= 0.0 && x < rect.x1 as f32 && y < rect.y1 as f32) {
+            return f32::INFINITY;
+        }
+        let nearest = self.depth.at(x as u32, y as u32);
+        if nearest == f32::INFINITY {
+            return f32::NEG_INFINITY;
+        }
+        // The ray climbs towards the light, against the view's depth.
+        let depth = (p - self.frame.position()).dot(self.frame.forward);
+        depth - nearest + 1e-4 * (depth.abs() + nearest.abs())
+    }
+}
+
 /// A lower bound on the ray parameter at which any of `frame`'s rays meets
 /// the box `[lo, hi]`: under perspective the distance from the eye to the
 /// box (rays have unit directions), orthographic the box's nearest depth
@@ -186,7 +272,7 @@ mod tests {
     use super::*;
     use crate::accel::{MacrocellGrid, SkipGrid};
     use crate::camera::Camera;
-    use crate::geometry::Aabb;
+    use crate::geometry::{Aabb, Ray};
     use crate::volume::AnyVolume;
     use glam::UVec3;
 
@@ -242,6 +328,60 @@ mod tests {
             }
             assert!(culled > 20, "{projection:?}: {culled}");
             assert!(covered > 100, "{projection:?}: {covered}");
+        }
+    }
+
+    /// A shadow ray from any point goes no further than its light proxy's
+    /// reach before it has left every straddling cell's box towards the
+    /// light (brute force), for lights along and off the axes; and the
+    /// reach cuts most rays well short of the volume's edge.
+    #[test]
+    fn light_reach_bounds_the_farthest_box_exits() {
+        let grid = Grid::new(UVec3::new(20, 17, 23), Vec3::new(1.0, 0.8, 1.2));
+        let centre = Vec3::new(9.0, 8.0, 11.0);
+        let volume = AnyVolume::from_fn(grid, |v| (v.as_vec3() - centre).length() * 10.0);
+        let macrocells = MacrocellGrid::build_any(&volume, 4, None);
+        let skip = SkipGrid::for_iso(&volume, &macrocells, 45.0);
+        let cells = skip.iso_cells().unwrap();
+        let boxes: Vec<Aabb> = cells
+            .straddling_cells()
+            .iter()
+            .map(|c| {
+                let c = c.as_vec3();
+                Aabb::new(
+                    grid.voxel_to_world(c - Vec3::splat(MARGIN)),
+                    grid.voxel_to_world(c + Vec3::splat(1.0 + MARGIN)),
+                )
+            })
+            .collect();
+        let bounds = grid.bounds();
+        let mut rng = fastrand::Rng::with_seed(7);
+        for light in [
+            Vec3::Y,
+            Vec3::NEG_X,
+            Vec3::new(0.6, 1.0, 0.4).normalize(),
+            Vec3::new(-0.3, -0.2, 1.0).normalize(),
+        ] {
+            let proxy = LightProxy::build(light, &grid, cells).unwrap();
+            let (mut cut, mut tried) = (0, 0);
+            for _ in 0..3000 {
+                let u = Vec3::new(rng.f32(), rng.f32(), rng.f32());
+                let p = bounds.min + u * (bounds.max - bounds.min);
+                let ray = Ray {
+                    origin: p,
+                    dir: light,
+                };
+                let want = boxes
+                    .iter()
+                    .filter_map(|b| b.intersect(&ray).map(|(_, t_out)| t_out))
+                    .fold(f32::NEG_INFINITY, f32::max);
+                let got = proxy.reach(p);
+                assert!(got >= want, "light {light} point {p}: reach {got} < {want}");
+                let edge = bounds.intersect(&ray).map_or(0.0, |(_, t)| t);
+                tried += 1;
+                cut += (got < 0.5 * edge) as u32;
+            }
+            assert!(cut * 4 > tried, "light {light}: {cut} of {tried} cut");
         }
     }
 }

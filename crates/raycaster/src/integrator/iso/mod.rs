@@ -171,9 +171,9 @@ impl Integrator for IsoState {
                         ctx.lights
                     };
                     let mut rgb = c * ph.ka;
-                    for &l in lights {
+                    for (k, &l) in lights.iter().enumerate() {
                         let ndotl = n.dot(l);
-                        if ndotl <= 0.0 || (ctx.shadows && in_shadow(ctx, hit.pos, n, l)) {
+                        if ndotl <= 0.0 || (ctx.shadows && in_shadow(ctx, hit.pos, n, l, k)) {
                             continue;
                         }
                         let (diffuse, spec) = ph.light(n, l, view);
@@ -206,8 +206,14 @@ fn trilinear_derivative(c: &Corners, f: Vec3) -> Vec3 {
 
 /// Whether the surface point `p` (voxel space) with normal `n` (world,
 /// facing the light) is hidden from a directional light towards `l`
-/// (world, unit) by the isosurface.
-fn in_shadow<V: Volume>(ctx: &FrameContext<'_, V>, p: Vec3, n: Vec3, l: Vec3) -> bool {
+/// (world, unit; light number `light` of the frame) by the isosurface.
+fn in_shadow<V: Volume>(
+    ctx: &FrameContext<'_, V>,
+    p: Vec3,
+    n: Vec3,
+    l: Vec3,
+    light: usize,
+) -> bool {
     let grid = ctx.volume.grid();
     // Leave the surface along the normal first: a shadow ray that started
     // on the surface could find the surface itself (shadow acne).
@@ -215,7 +221,12 @@ fn in_shadow<V: Volume>(ctx: &FrameContext<'_, V>, p: Vec3, n: Vec3, l: Vec3) ->
     let origin = p + normal_vox * SHADOW_OFFSET;
     let ray = VoxelRay::new(origin, l / grid.spacing);
     let bounds = Aabb::new(Vec3::ZERO, grid.max_coord());
-    let t1 = bounds.exit(ray.origin, ray.inv_dir);
+    let mut t1 = bounds.exit(ray.origin, ray.inv_dir);
+    if let Some(Some(proxy)) = ctx.light_proxies.get(light) {
+        // Past the last cell towards the light that can hold the surface
+        // there is nothing to find.
+        t1 = t1.min(proxy.reach(grid.voxel_to_world(origin)));
+    }
     if t1.is_nan() || t1 <= 0.0 {
         return false;
     }
