@@ -451,3 +451,66 @@ fn volume_renderers_reject_the_metaballs_mode() {
         assert!(e.to_string().contains("MetaballRenderer"), "{e}");
     }
 }
+
+/// A small ball above a large one (their supports apart), lit from above:
+/// with shadows the top of the large ball under the small one darkens,
+/// a point of it well outside the shadow does not, no pixel brightens,
+/// and every renderer gives the same image.
+#[test]
+fn a_ball_above_another_casts_its_shadow_on_it() {
+    let balls = Balls::new(
+        vec![
+            Ball {
+                center: Vec3::ZERO,
+                radius: 1.0,
+                value: 0.0,
+            },
+            Ball {
+                center: Vec3::new(0.0, 1.8, 0.0),
+                radius: 0.5,
+                value: 0.0,
+            },
+        ],
+        false,
+    )
+    .unwrap();
+    let cam = Camera::look_at(Vec3::new(0.0, 2.2, 3.5), Vec3::new(0.0, 0.4, 0.0), 160, 160);
+    let mut options = MetaballOptions {
+        lights: vec![Vec3::Y],
+        ..MetaballOptions::default()
+    };
+    let render = |kind, threads, options: &MetaballOptions| {
+        MetaballRenderer::new(kind, threads)
+            .unwrap()
+            .render(&balls, &cam, None, options)
+            .unwrap()
+            .0
+    };
+    let lit = render(RendererKind::Serial, 1, &options);
+    options.shadows = true;
+    let shadowed = render(RendererKind::Serial, 1, &options);
+    for kind in RendererKind::ALL {
+        for threads in [1, 2] {
+            assert_eq!(
+                render(kind, threads, &options).rgb,
+                shadowed.rgb,
+                "{kind:?} {threads}"
+            );
+        }
+    }
+    // The lower ball's surface radius: Wyvill's kernel at T = 0.5.
+    let r_low = Kernel::Wyvill.level_radius(0.5).unwrap() as f32;
+    let frame = cam.frame().unwrap();
+    let pixel = |p: Vec3| {
+        let (x, y) = frame.project(p).unwrap();
+        let k = 3 * (y as usize * 160 + x as usize);
+        (lit.rgb[k..k + 3].to_vec(), shadowed.rgb[k..k + 3].to_vec())
+    };
+    // Right under the small ball, and 50° away from the top towards the camera.
+    let (a, b) = pixel(Vec3::new(0.0, r_low, 0.0));
+    assert!(b.iter().zip(&a).all(|(s, l)| s < l), "top: {a:?} -> {b:?}");
+    let side = Vec3::new(0.0, 50f32.to_radians().cos(), 50f32.to_radians().sin()) * r_low;
+    let (a, b) = pixel(side);
+    assert_eq!(a, b, "outside the shadow");
+    assert!(lit.rgb.iter().zip(&shadowed.rgb).all(|(l, s)| s <= l));
+}

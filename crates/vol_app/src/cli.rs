@@ -418,11 +418,12 @@ pub struct RenderArgs {
     /// Phong shading from gradients.
     #[arg(long, value_enum, default_value_t = Switch::On)]
     pub shading: Switch,
-    /// --mode iso: a directional light, the world direction towards it
+    /// --mode iso and metaballs: a directional light, the world direction towards it
     /// (repeat for more lights). Default: one headlight.
     #[arg(long = "light", value_name = "DX,DY,DZ", allow_hyphen_values = true, value_parser = parse_vec3)]
     pub lights: Vec<Vec3>,
-    /// --mode iso: cast a shadow ray towards each light from every hit.
+    /// --mode iso and metaballs: cast a shadow ray towards each light from
+    /// every hit.
     #[arg(long, value_enum, default_value_t = Switch::Off)]
     pub shadows: Switch,
     /// --mode iso: how the surface normal is found.

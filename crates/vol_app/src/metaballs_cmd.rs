@@ -17,9 +17,6 @@ pub fn run(args: &RenderArgs) -> Result<(), Error> {
     if args.progressive.is_some() {
         return Err("--progressive is not available with --mode metaballs".into());
     }
-    if args.shadows.on() {
-        return Err("--shadows is not available with --mode metaballs (no shadow rays)".into());
-    }
     if !(args.field_threshold.is_finite() && args.field_threshold > 0.0) {
         return Err(format!(
             "--field-threshold {} must be a finite number greater than 0",
@@ -114,18 +111,22 @@ pub fn run(args: &RenderArgs) -> Result<(), Error> {
         phong: None,
         lights: args.lights.clone(),
         background: args.background,
+        shadows: args.shadows.on(),
     };
     let mut renderer = MetaballRenderer::new(args.renderer, args.threads as usize)?;
     let mut last = renderer.render(&balls, &camera, tf.as_ref(), &options)?;
     let mut times = vec![ms(last.0.stats.time)];
     let mut lists = vec![ms(last.1.lists)];
+    let mut grids = vec![ms(last.1.shadow_grid)];
     if args.repeat > 1 {
         times.clear();
         lists.clear();
+        grids.clear();
         for _ in 0..args.repeat {
             last = renderer.render(&balls, &camera, tf.as_ref(), &options)?;
             times.push(ms(last.0.stats.time));
             lists.push(ms(last.1.lists));
+            grids.push(ms(last.1.shadow_grid));
         }
     }
     let (frame, mstats) = last;
@@ -157,6 +158,7 @@ pub fn run(args: &RenderArgs) -> Result<(), Error> {
                 build_ms,
                 lists_ms_median: median(&lists),
                 list_entries: mstats.list_entries,
+                shadow_grid_ms_median: median(&grids),
             }),
         })?;
     } else if let Some(path) = &out {

@@ -36,6 +36,9 @@ pub struct MetaballJson {
     pub lists_ms_median: f64,
     /// Entries in all candidate lists (last frame).
     pub list_entries: u64,
+    /// With `--shadows on`: binning the balls for the shadow rays, per
+    /// frame (ms, median; part of `frame_ms`).
+    pub shadow_grid_ms_median: f64,
 }
 
 /// Prints `value` as one JSON line on stdout; a closed pipe (`| head`) is

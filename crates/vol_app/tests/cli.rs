@@ -851,7 +851,6 @@ fn metaballs_render_from_points_files_and_volumes() {
         (vec!["--field-threshold", "0"], "--field-threshold"),
         (vec!["--ball-radius", "-1"], "--ball-radius"),
         (vec!["--kernel", "blinn"], "blinn"),
-        (vec!["--shadows", "on"], "--shadows"),
         (vec!["--light", "0,0,0"], "invalid light"),
     ];
     for (args, needle) in cases {

@@ -1399,6 +1399,7 @@ fn metaballs_mode_renders_the_librarys_balls_and_rebuilds_only_what_it_must() {
             phong: None,
             lights: r.options.lights.clone(),
             background: r.options.background,
+            shadows: r.options.shadows,
         };
         let (want, _) = MetaballRenderer::new(RendererKind::Serial, 1)
             .unwrap()

@@ -25,10 +25,26 @@ pub struct Ball {
 
 /// The balls of a scene, in a fixed order (which makes frames
 /// deterministic).
-#[derive(Debug, Clone, Default, PartialEq)]
+#[derive(Debug, Clone, Default)]
 pub struct Balls {
     balls: Vec<Ball>,
     has_values: bool,
+    /// Unique to the set made (its clones share it; the balls never change
+    /// after), so a renderer can keep what it built from them.
+    id: u64,
+}
+
+impl PartialEq for Balls {
+    fn eq(&self, other: &Self) -> bool {
+        self.has_values == other.has_values && self.balls == other.balls
+    }
+}
+
+/// A new [`Balls::id`]; 0 is the default (empty) set's.
+fn next_id() -> u64 {
+    use std::sync::atomic::{AtomicU64, Ordering};
+    static NEXT: AtomicU64 = AtomicU64::new(1);
+    NEXT.fetch_add(1, Ordering::Relaxed)
 }
 
 /// How a volume becomes balls: one at the centre of every `stride`-th voxel
@@ -74,7 +90,17 @@ impl Balls {
                 ));
             }
         }
-        Ok(Balls { balls, has_values })
+        Ok(Balls {
+            balls,
+            has_values,
+            id: next_id(),
+        })
+    }
+
+    /// Which set these are: equal for a set and its clones, different for
+    /// sets made separately.
+    pub fn id(&self) -> u64 {
+        self.id
     }
 
     /// The balls.
@@ -166,6 +192,7 @@ impl Balls {
             Ok(balls) => Ok(Balls {
                 balls,
                 has_values: true,
+                id: next_id(),
             }),
             Err(cap) => Err(Error::TooManyBalls {
                 what: format!(
@@ -307,7 +334,11 @@ impl Balls {
                 value: value.unwrap_or(0.0),
             })
             .collect();
-        Ok(Balls { balls, has_values })
+        Ok(Balls {
+            balls,
+            has_values,
+            id: next_id(),
+        })
     }
 }
 

@@ -15,6 +15,7 @@
 //! | `tiles.rs` | per-tile candidate lists in two passes (count, fill) from each ball's projected bounding square, sorted by the frame's entry bound `t_lo` |
 //! | `ray.rs` | one ray: entry/exit events, the running polynomial of `F − T` per interval, its first root; shading |
 //! | `poly.rs` | polynomials of degree ≤ 6: Taylor shift, Bernstein coefficients, first root |
+//! | `shadow.rs` | a uniform grid of all balls, walked by shadow rays towards each light |
 //! | `render.rs` | [`MetaballRenderer`]: the lists, the tile loop, serial or on a pool |
 //!
 //! The hit is the first root of `F − T` along the ray, within
@@ -23,7 +24,8 @@
 //! grazing the surface) may go unnoticed. Normals are the analytic
 //! gradient of `F`; the colour is the balls' colours (the TF at their
 //! values) blended by their kernel weights at the hit; shading is the iso
-//! mode's Phong with its lights (no shadows).
+//! mode's Phong with its lights and, on request, shadow rays
+//! (`shadow.rs`: the balls in a world-space grid walked by 3D DDA).
 //!
 //! Metaballs are not rendered from a volume's samples, so the volume
 //! renderers ([`crate::render`]) reject [`RenderMode::Metaballs`](crate::integrator::RenderMode::Metaballs):
@@ -55,6 +57,7 @@ mod kernel;
 mod poly;
 mod ray;
 mod render;
+mod shadow;
 mod tiles;
 
 pub use balls::{Ball, Balls, Extraction, POINTS_EXTENSIONS};

@@ -101,6 +101,23 @@ pub struct Cand {
     ball: u32,
 }
 
+impl Cand {
+    /// A candidate ball `ball` (centre, radius²) no ray enters before `t_lo`.
+    pub fn new(center: DVec3, r2: f64, t_lo: f64, ball: u32) -> Self {
+        Cand {
+            center,
+            r2,
+            t_lo,
+            ball,
+        }
+    }
+
+    /// No ray enters the ball before this.
+    pub fn t_lo(&self) -> f64 {
+        self.t_lo
+    }
+}
+
 /// A tile's `candidates` (indices into `balls`, in `t_lo` order) as
 /// [`Cand`]s, into `out`.
 pub fn tile_cands(balls: &[FrameBall], candidates: &[u32], out: &mut Vec<Cand>) {
@@ -339,8 +356,15 @@ fn compose_at(kernel: Kernel, m: &Met, t_org: f64, sc: f64) -> Poly {
 /// The colour at the hit `t` of `ray` found by [`first_hit`] with `s`: the
 /// balls' colours blended by their kernel weights, Phong-shaded with the
 /// gradient of the field as normal (two-sided), flat without shading.
-/// Premultiplied, opaque.
-pub fn shade(p: &RayParams<'_>, ray: &Ray, t: f64, s: &Scratch) -> Vec4 {
+/// Premultiplied, opaque. `blocked(x, n, l)` says whether the light towards
+/// `l` is hidden from the hit `x` (outward normal `n`, facing `l`).
+pub fn shade(
+    p: &RayParams<'_>,
+    ray: &Ray,
+    t: f64,
+    s: &Scratch,
+    mut blocked: impl FnMut(DVec3, Vec3, Vec3) -> bool,
+) -> Vec4 {
     let o = ray.origin.as_dvec3();
     let d = ray.dir.as_dvec3();
     let x = o + t * d;
@@ -372,8 +396,12 @@ pub fn shade(p: &RayParams<'_>, ray: &Ray, t: f64, s: &Scratch) -> Vec4 {
             let len = grad.length();
             if len > 0.0 && len.is_finite() {
                 let view = -ray.dir;
-                let n = (-grad / len).as_vec3();
-                let n = if n.dot(view) < 0.0 { -n } else { n };
+                let outward = (-grad / len).as_vec3();
+                let n = if outward.dot(view) < 0.0 {
+                    -outward
+                } else {
+                    outward
+                };
                 let headlight = [view];
                 let lights = if p.lights.is_empty() {
                     &headlight[..]
@@ -382,6 +410,9 @@ pub fn shade(p: &RayParams<'_>, ray: &Ray, t: f64, s: &Scratch) -> Vec4 {
                 };
                 let mut rgb = c * ph.ka;
                 for &l in lights {
+                    if n.dot(l) > 0.0 && outward.dot(l) > 0.0 && blocked(x, outward, l) {
+                        continue;
+                    }
                     let (diffuse, spec) = ph.light(n, l, view);
                     rgb += c * diffuse + Vec3::splat(spec);
                 }

@@ -12,9 +12,11 @@ use rayon::prelude::*;
 use super::balls::Balls;
 use super::kernel::Kernel;
 use super::ray::{self, RayParams, Scratch};
+use super::shadow::{ShadowGrid, ShadowScratch};
 use super::tiles::TileLists;
 use crate::camera::{Camera, CameraFrame, PixelRect};
 use crate::error::{Error, Result};
+use crate::geometry::Ray;
 use crate::integrator::Phong;
 use crate::render::film::{Film, RayCounts};
 use crate::render::{Frame, FrameStats, RendererKind};
@@ -36,6 +38,9 @@ pub struct MetaballOptions {
     pub lights: Vec<Vec3>,
     /// Background colour, 0..1.
     pub background: Vec3,
+    /// Shadow rays from each hit towards each light (with shading): a
+    /// light the surface hides adds nothing there. As in iso mode.
+    pub shadows: bool,
 }
 
 impl Default for MetaballOptions {
@@ -47,6 +52,7 @@ impl Default for MetaballOptions {
             phong: None,
             lights: Vec::new(),
             background: Vec3::ZERO,
+            shadows: false,
         }
     }
 }
@@ -60,6 +66,10 @@ pub struct MetaballStats {
     pub list_entries: u64,
     /// Balls in front of the camera.
     pub visible_balls: u64,
+    /// Binning every ball into the shadow rays' grid (with shadows; part
+    /// of the frame time; next to nothing while the balls and kernel stay
+    /// the same: the grid is kept).
+    pub shadow_grid: Duration,
 }
 
 /// Renders [`Balls`]: serially or on a thread pool (see the module docs).
@@ -67,6 +77,10 @@ pub struct MetaballRenderer {
     kind: RendererKind,
     pool: Option<rayon::ThreadPool>,
     threads: usize,
+    /// The last shadow grid, by the [`Balls::id`] and kernel it was built
+    /// for: while they do not change (a moving camera, new lights) it is
+    /// reused.
+    shadow_grid: Option<(u64, Kernel, Option<ShadowGrid>)>,
 }
 
 impl std::fmt::Debug for MetaballRenderer {
@@ -98,6 +112,7 @@ impl MetaballRenderer {
             kind,
             pool,
             threads,
+            shadow_grid: None,
         })
     }
 
@@ -176,6 +191,31 @@ impl MetaballRenderer {
             shading: options.shading.then(|| options.phong.unwrap_or_default()),
             lights: &lights,
         };
+        // Shadow casters include the balls the camera does not see.
+        let grid_start = Instant::now();
+        let key = (balls.id(), options.kernel);
+        if options.shadows
+            && options.shading
+            && self
+                .shadow_grid
+                .as_ref()
+                .is_none_or(|(id, kernel, _)| (*id, *kernel) != key)
+        {
+            let grid = match &self.pool {
+                None => ShadowGrid::build(balls, options.kernel),
+                Some(pool) => pool.install(|| ShadowGrid::build(balls, options.kernel)),
+            };
+            self.shadow_grid = Some((key.0, key.1, grid));
+        }
+        let shadow_grid = match &self.shadow_grid {
+            Some((_, _, grid)) if options.shadows && options.shading => grid.as_ref(),
+            _ => None,
+        };
+        let shadow_grid_time = grid_start.elapsed();
+        let shadow_params = shadow_grid.map(|g| RayParams {
+            balls: &g.balls,
+            ..params
+        });
         let mut film = Film::new(camera.width, camera.height, options.background);
         let tiles: Vec<(u32, u32)> = (0..lists.rows)
             .flat_map(|ty| (0..lists.cols).map(move |tx| (tx, ty)))
@@ -185,6 +225,8 @@ impl MetaballRenderer {
             frame: &frame,
             lists: &lists,
             params: &params,
+            shadows: shadow_grid.zip(shadow_params.as_ref()),
+            offset: SHADOW_OFFSET * r_min.min(r_max),
             film: &film,
         };
         let results: Vec<(Vec<u8>, u64)> = match &self.pool {
@@ -210,6 +252,7 @@ impl MetaballRenderer {
             lists: lists_time,
             list_entries: lists.entries() as u64,
             visible_balls: lists.balls.len() as u64,
+            shadow_grid: shadow_grid_time,
         };
         Ok((
             Frame {
@@ -233,11 +276,20 @@ impl MetaballRenderer {
 /// asks for 1e-3·R).
 pub const ROOT_TOLERANCE: f64 = 1e-4;
 
+/// Shadow rays start this fraction of the smallest radius off the surface
+/// along its normal, well past the hit's tolerance, so that they do not
+/// find the surface they leave.
+const SHADOW_OFFSET: f64 = 2e-3;
+
 /// What the tile loop reads.
 struct TileJob<'a> {
     frame: &'a CameraFrame,
     lists: &'a TileLists,
     params: &'a RayParams<'a>,
+    /// With shadows: all balls in a grid, and the shadow rays' parameters.
+    shadows: Option<(&'a ShadowGrid, &'a RayParams<'a>)>,
+    /// How far off the surface shadow rays start.
+    offset: f64,
     film: &'a Film,
 }
 
@@ -249,6 +301,7 @@ fn render_tile(job: &TileJob<'_>, (tx, ty): (u32, u32)) -> (Vec<u8>, u64) {
     let rect: PixelRect = job.lists.rect(tx, ty);
     let cands = job.lists.candidates(tx, ty);
     let mut scratch = Scratch::default();
+    let mut shadow_scratch = ShadowScratch::default();
     let mut tile = Vec::new();
     ray::tile_cands(job.params.balls, cands, &mut tile);
     let mut rgb = Vec::with_capacity(3 * rect.area() as usize);
@@ -261,7 +314,16 @@ fn render_tile(job: &TileJob<'_>, (tx, ty): (u32, u32)) -> (Vec<u8>, u64) {
             met += res.met as u64;
             let px = match res.t {
                 Some(t) => {
-                    let c = ray::shade(job.params, &r, t, &scratch);
+                    let c = ray::shade(job.params, &r, t, &scratch, |x, n, l| {
+                        job.shadows.is_some_and(|(grid, params)| {
+                            let origin = x + n.as_dvec3() * job.offset;
+                            let shadow = Ray {
+                                origin: origin.as_vec3(),
+                                dir: l,
+                            };
+                            grid.blocked(params, &shadow, &mut shadow_scratch)
+                        })
+                    });
                     counts.add(c);
                     job.film.composite(c)
                 }

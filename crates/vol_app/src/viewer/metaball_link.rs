@@ -201,6 +201,7 @@ impl State {
             phong: None,
             lights: r.options.lights.clone(),
             background: r.options.background,
+            shadows: r.options.shadows,
         };
         let (frame, _) = renderer
             .render(balls, &camera, Some(&r.tf), &options)

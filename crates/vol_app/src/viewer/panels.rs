@@ -384,22 +384,21 @@ fn metaballs_editor(
     moving
 }
 
-/// The directional lights (none: the headlight) of the iso and Metaballs
-/// modes, and iso mode's shadows (`with_shadows`). Returns true while a
+/// The directional lights (none: the headlight) and shadows of the iso and
+/// Metaballs modes, and iso mode's normals (`iso`). Returns true while a
 /// light's slider is dragged.
-fn lights_editor(ui: &mut Ui, s: &mut Settings, with_shadows: bool) -> bool {
-    if with_shadows {
-        ui.checkbox(&mut s.shadows, "Shadows")
-            .on_hover_text("Cast a shadow ray towards each light from every surface hit");
-    }
+fn lights_editor(ui: &mut Ui, s: &mut Settings, iso: bool) -> bool {
+    ui.checkbox(&mut s.shadows, "Shadows")
+        .on_hover_text("Cast a shadow ray towards each light from every surface hit");
     let mut analytic = s.iso_normals == IsoNormals::Analytic;
-    if ui
-        .checkbox(&mut analytic, "Faceted normals")
-        .on_hover_text(
-            "Normals from the exact derivative of each cell's interpolant (faceted) \
+    if iso
+        && ui
+            .checkbox(&mut analytic, "Faceted normals")
+            .on_hover_text(
+                "Normals from the exact derivative of each cell's interpolant (faceted) \
              instead of the interpolated central differences (smooth)",
-        )
-        .changed()
+            )
+            .changed()
     {
         s.iso_normals = if analytic {
             IsoNormals::Analytic

@@ -1,0 +1,449 @@
+//! [`ShadowGrid`]: the balls binned into a uniform world-space grid, so a
+//! shadow ray from a hit towards a light finds the balls it passes.
+//!
+//! Camera rays get their candidates from the screen tiles; shadow rays go
+//! in any direction, so they walk a grid of cells about a radius wide by 3D
+//! DDA (Amanatides–Woo). Each ball is binned into every cell its support
+//! (a sphere) reaches into, so a cell's bin holds every ball that adds to
+//! the field in the cell, and the field anywhere in the cell is the sum over its bin.
+//! Each cell keeps a bound on that sum (each ball's kernel at its nearest
+//! point of the cell); a cell whose bound is below `T` cannot hold the
+//! surface and is passed over.
+//!
+//! In a cell that can, the ray looks for a root of `F − T` with the cell's
+//! balls only, with the same solver as camera rays
+//! ([`ray::first_hit_tile`]). The kernels are never negative, so the field
+//! of some of the balls is at most the whole field: a root found with them
+//! means the whole field reaches `T` too, while the ray started below it, so
+//! the surface lies between the hit and the light. And where the whole field
+//! crosses `T`, in some cell, that cell's balls give the whole field there,
+//! so the crossing is found. A light is blocked exactly when the walk finds
+//! one, and the walk stops at the first.
+
+use glam::{DVec3, IVec3, Vec3};
+use rayon::prelude::*;
+
+use super::balls::Balls;
+use super::kernel::Kernel;
+use super::ray::{self, Cand, RayParams, Scratch};
+use super::tiles::FrameBall;
+use crate::geometry::Ray;
+use crate::render::bins::Bins;
+
+/// At most about this many cells per ball (the cells grow when the balls'
+/// box would need more): the grid's memory stays proportional to the
+/// balls.
+const CELLS_PER_BALL: f64 = 8.0;
+
+/// Every ball of a frame (the shadow casters include balls the camera does
+/// not see) in a uniform grid of cells, each ball in the cells its support
+/// reaches into.
+#[derive(Debug, Clone)]
+pub struct ShadowGrid {
+    /// The balls, indexed as the bins' items.
+    pub balls: Vec<FrameBall>,
+    origin: DVec3,
+    cell: f64,
+    dims: IVec3,
+    bins: Bins,
+    /// Per cell, at least the field anywhere in it.
+    bound: Vec<f64>,
+}
+
+/// Per-thread buffers for shadow rays.
+#[derive(Debug, Default)]
+pub struct ShadowScratch {
+    scratch: Scratch,
+    cands: Vec<Cand>,
+}
+
+impl ShadowGrid {
+    /// Bins `balls` and bounds the field of `kernel` per cell (colours are
+    /// not needed: shadow rays only find roots). `None` when there are none.
+    pub fn build(balls: &Balls, kernel: Kernel) -> Option<Self> {
+        let all = balls.as_slice();
+        if all.is_empty() {
+            return None;
+        }
+        let (mut lo, mut hi, mut r_max) = (DVec3::MAX, DVec3::MIN, 0.0f64);
+        for b in all {
+            let (c, r) = (b.center.as_dvec3(), b.radius as f64);
+            lo = lo.min(c - r);
+            hi = hi.max(c + r);
+            r_max = r_max.max(r);
+        }
+        let extent = (hi - lo).max(DVec3::splat(1e-9));
+        // Cells a radius wide, or wider when that would make too many.
+        let budget = CELLS_PER_BALL * all.len() as f64 + 64.0;
+        let cell = r_max.max((extent.x * extent.y * extent.z / budget).cbrt());
+        let dims = (extent / cell).ceil().max(DVec3::ONE).as_ivec3();
+        let frame_balls: Vec<FrameBall> = all
+            .iter()
+            .map(|b| {
+                let r = b.radius as f64;
+                FrameBall {
+                    center: b.center.as_dvec3(),
+                    r2: r * r,
+                    inv_r2: 1.0 / (r * r),
+                    t_lo: 0.0,
+                    color: Vec3::ONE,
+                }
+            })
+            .collect();
+        let cell_of = |p: DVec3| {
+            ((p - lo) / cell)
+                .floor()
+                .as_ivec3()
+                .clamp(IVec3::ZERO, dims - 1)
+        };
+        let n = (dims.x * dims.y * dims.z) as usize;
+        let bins = Bins::build(n, frame_balls.len(), |k, put| {
+            let fb = &frame_balls[k];
+            let r = fb.r2.sqrt();
+            let (a, b) = (cell_of(fb.center - r), cell_of(fb.center + r));
+            // The cells the ball's support reaches into (a little more
+            // for rounding), not all those its bounding box touches.
+            let reach = fb.r2 * (1.0 + 1e-6);
+            for z in a.z..=b.z {
+                for y in a.y..=b.y {
+                    for x in a.x..=b.x {
+                        let c = IVec3::new(x, y, z).as_dvec3();
+                        let (lo_c, hi_c) = (lo + c * cell, lo + (c + 1.0) * cell);
+                        let d2 = (fb.center.clamp(lo_c, hi_c) - fb.center).length_squared();
+                        if d2 <= reach {
+                            put(((z * dims.y + y) * dims.x + x) as usize);
+                        }
+                    }
+                }
+            }
+        });
+        let bound = (0..n)
+            .into_par_iter()
+            .map(|idx| {
+                let i = idx as i32;
+                let c = IVec3::new(i % dims.x, (i / dims.x) % dims.y, i / (dims.x * dims.y));
+                let (lo_c, hi_c) = (lo + c.as_dvec3() * cell, lo + (c + 1).as_dvec3() * cell);
+                bins.get(idx)
+                    .iter()
+                    .map(|&k| {
+                        let fb = &frame_balls[k as usize];
+                        let d2 = (fb.center.clamp(lo_c, hi_c) - fb.center).length_squared();
+                        let s = d2 * fb.inv_r2;
+                        if s >= 1.0 { 0.0 } else { kernel.at_s(s) }
+                    })
+                    .sum::<f64>()
+                    // Room for the rounding of the cell's box.
+                    * (1.0 + 1e-9)
+                    + 1e-12
+            })
+            .collect();
+        Some(ShadowGrid {
+            balls: frame_balls,
+            bound,
+            origin: lo,
+            cell,
+            dims,
+            bins,
+        })
+    }
+
+    /// Whether the surface `F = T` of `p` (whose `balls` must be this
+    /// grid's) crosses `ray` (unit direction) at some `t > 0`; the ray
+    /// must start outside the surface (`F < T`).
+    pub fn blocked(&self, p: &RayParams<'_>, ray: &Ray, s: &mut ShadowScratch) -> bool {
+        let o = ray.origin.as_dvec3();
+        let d = ray.dir.as_dvec3();
+        self.walk(ray, |idx| {
+            if self.bound[idx] < p.threshold {
+                return false;
+            }
+            s.cands.clear();
+            for &k in self.bins.get(idx) {
+                let fb = &self.balls[k as usize];
+                let oc = fb.center - o;
+                let b = oc.dot(d);
+                let h2 = (oc - b * d).length_squared();
+                if h2 >= fb.r2 {
+                    continue;
+                }
+                let half = (fb.r2 - h2).sqrt();
+                if b + half <= 0.0 {
+                    continue;
+                }
+                s.cands.push(Cand::new(fb.center, fb.r2, b - half, k));
+            }
+            if s.cands.is_empty() {
+                return false;
+            }
+            s.cands
+                .sort_unstable_by(|a, b| a.t_lo().total_cmp(&b.t_lo()));
+            ray::first_hit_tile(p, ray, &s.cands, &mut s.scratch)
+                .t
+                .is_some()
+        })
+    }
+
+    /// Calls `visit` with the index of every cell `ray` crosses from its
+    /// origin on, in order, until it returns true (then true).
+    fn walk(&self, ray: &Ray, mut visit: impl FnMut(usize) -> bool) -> bool {
+        let o = (ray.origin.as_dvec3() - self.origin) / self.cell;
+        let d = ray.dir.as_dvec3();
+        let dims = self.dims.as_dvec3();
+        // Enter the grid's box (in cell units) if the origin is outside it.
+        let inv = d.recip();
+        let t0 = (DVec3::ZERO - o) * inv;
+        let t1 = (dims - o) * inv;
+        let t_enter = t0.min(t1).max_element().max(0.0);
+        let t_exit = t0.max(t1).min_element();
+        if t_enter.is_nan() || t_exit.is_nan() || t_enter > t_exit {
+            return false;
+        }
+        let start = o + d * t_enter;
+        let mut c = start.floor().as_ivec3().clamp(IVec3::ZERO, self.dims - 1);
+        let step = IVec3::new(
+            if d.x >= 0.0 { 1 } else { -1 },
+            if d.y >= 0.0 { 1 } else { -1 },
+            if d.z >= 0.0 { 1 } else { -1 },
+        );
+        // Per axis the parameter of the next cell plane, computed from the
+        // cell index each time (no accumulated drift).
+        let next_t = |c: IVec3| {
+            let plane = (c + step.max(IVec3::ZERO)).as_dvec3();
+            let t = (plane - o) * inv;
+            DVec3::select(d.abs().cmpgt(DVec3::ZERO), t, DVec3::INFINITY)
+        };
+        loop {
+            let idx = ((c.z * self.dims.y + c.y) * self.dims.x + c.x) as usize;
+            if visit(idx) {
+                return true;
+            }
+            let t = next_t(c);
+            let m = t.min_element();
+            if m > t_exit || !m.is_finite() {
+                return false;
+            }
+            let axis = if t.x == m {
+                0
+            } else if t.y == m {
+                1
+            } else {
+                2
+            };
+            c[axis] += step[axis];
+            if c[axis] < 0 || c[axis] >= self.dims[axis] {
+                return false;
+            }
+        }
+    }
+
+    /// The balls binned in the cells `ray` crosses, each once, into `out`.
+    #[cfg(test)]
+    fn gather(&self, ray: &Ray, out: &mut Vec<u32>) {
+        out.clear();
+        self.walk(ray, |idx| {
+            out.extend_from_slice(self.bins.get(idx));
+            false
+        });
+        out.sort_unstable();
+        out.dedup();
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::metaballs::balls::Ball;
+    use crate::metaballs::ray::Scratch;
+
+    /// The gathered balls include every ball the ray's half-line meets
+    /// (brute force), for random balls and rays from inside and outside
+    /// the grid.
+    #[test]
+    fn the_walk_gathers_every_ball_the_ray_meets() {
+        let mut rng = fastrand::Rng::with_seed(3);
+        let list: Vec<Ball> = (0..300)
+            .map(|_| Ball {
+                center: Vec3::new(rng.f32(), rng.f32(), rng.f32()) * 4.0,
+                radius: 0.1 + 0.3 * rng.f32(),
+                value: 0.0,
+            })
+            .collect();
+        let balls = Balls::new(list.clone(), false).unwrap();
+        let grid = ShadowGrid::build(&balls, Kernel::Wyvill).unwrap();
+        let mut found = Vec::new();
+        for _ in 0..500 {
+            let origin = Vec3::new(rng.f32(), rng.f32(), rng.f32()) * 6.0 - 1.0;
+            let dir = (Vec3::new(rng.f32(), rng.f32(), rng.f32()) - 0.5).normalize();
+            let ray = Ray { origin, dir };
+            grid.gather(&ray, &mut found);
+            for (k, b) in list.iter().enumerate() {
+                let oc = b.center - origin;
+                let t = oc.dot(dir);
+                let h2 = (oc - t * dir).length_squared();
+                let meets = h2 < b.radius * b.radius && t + (b.radius * b.radius - h2).sqrt() > 0.0;
+                if meets {
+                    assert!(found.binary_search(&(k as u32)).is_ok(), "ball {k} missed");
+                }
+            }
+        }
+        // Along an axis too (zero direction components).
+        let ray = Ray {
+            origin: Vec3::new(-1.0, 2.0, 2.0),
+            dir: Vec3::X,
+        };
+        grid.gather(&ray, &mut found);
+        assert!(!found.is_empty());
+    }
+
+    /// Two separate balls (their supports do not overlap): points of the
+    /// lower ball's surface are blocked from a light above exactly when the
+    /// half-line towards the light meets the upper ball's surface sphere
+    /// (radius from the closed form), away from the shadow's edge.
+    #[test]
+    fn a_balls_shadow_falls_where_the_spheres_say() {
+        let kernel = Kernel::Wyvill;
+        let threshold = 0.5f64;
+        let (lower, upper) = (Vec3::ZERO, Vec3::new(0.3, 2.5, 0.1));
+        let balls = Balls::new(
+            vec![
+                Ball {
+                    center: lower,
+                    radius: 1.0,
+                    value: 0.0,
+                },
+                Ball {
+                    center: upper,
+                    radius: 0.6,
+                    value: 0.0,
+                },
+            ],
+            false,
+        )
+        .unwrap();
+        let grid = ShadowGrid::build(&balls, kernel).unwrap();
+        let params = RayParams {
+            balls: &grid.balls,
+            kernel,
+            threshold,
+            scale: 1.0,
+            tol: 1e-5,
+            shading: None,
+            lights: &[],
+        };
+        // The surface radius of a lone ball: K(s) = T, s = (r/R)².
+        let surface = |radius: f64| {
+            let (mut a, mut b) = (0.0f64, 1.0f64);
+            for _ in 0..60 {
+                let m = 0.5 * (a + b);
+                if kernel.at_s(m) > threshold {
+                    a = m
+                } else {
+                    b = m
+                }
+            }
+            radius * (0.5 * (a + b)).sqrt()
+        };
+        let (r_low, r_up) = (surface(1.0), surface(0.6));
+        let light = Vec3::new(0.1, 1.0, -0.05).normalize();
+        let mut s = ShadowScratch::default();
+        let mut rng = fastrand::Rng::with_seed(11);
+        let (mut shadowed, mut lit) = (0, 0);
+        for _ in 0..4000 {
+            let n = (Vec3::new(rng.f32(), rng.f32(), rng.f32()) - 0.5).normalize();
+            if n.dot(light) <= 0.05 {
+                continue;
+            }
+            let p = lower + n * r_low as f32;
+            // The half-line's closest approach to the upper centre.
+            let oc = upper - p;
+            let t = oc.dot(light);
+            let miss = (oc - t * light).length() as f64 - r_up;
+            if t <= 0.0 || miss.abs() < 0.02 {
+                continue;
+            }
+            let ray = Ray {
+                origin: p + n * 1e-3,
+                dir: light,
+            };
+            let blocked = grid.blocked(&params, &ray, &mut s);
+            assert_eq!(blocked, miss < 0.0, "point {p}: miss distance {miss}");
+            if blocked { shadowed += 1 } else { lit += 1 }
+        }
+        assert!(shadowed > 20 && lit > 200, "{shadowed} shadowed, {lit} lit");
+    }
+
+    /// The walk's answer, cell by cell with each cell's balls, is the answer
+    /// of one solve along the ray with every ball the ray meets, from
+    /// random points outside the surface of overlapping balls.
+    #[test]
+    fn cell_by_cell_agrees_with_all_the_balls_at_once() {
+        let kernel = Kernel::Wyvill;
+        let mut rng = fastrand::Rng::with_seed(5);
+        let list: Vec<Ball> = (0..200)
+            .map(|_| Ball {
+                center: Vec3::new(rng.f32(), rng.f32(), rng.f32()) * 3.0,
+                radius: 0.3 + 0.4 * rng.f32(),
+                value: 0.0,
+            })
+            .collect();
+        let balls = Balls::new(list, false).unwrap();
+        let grid = ShadowGrid::build(&balls, kernel).unwrap();
+        let params = RayParams {
+            balls: &grid.balls,
+            kernel,
+            threshold: 0.5,
+            scale: 0.7,
+            tol: 1e-5,
+            shading: None,
+            lights: &[],
+        };
+        let field = |x: DVec3| {
+            grid.balls
+                .iter()
+                .map(|b| {
+                    let s = (x - b.center).length_squared() * b.inv_r2;
+                    if s < 1.0 { kernel.at_s(s) } else { 0.0 }
+                })
+                .sum::<f64>()
+        };
+        let (mut s, mut scratch) = (ShadowScratch::default(), Scratch::default());
+        let (mut blocked, mut tried) = (0, 0);
+        for _ in 0..3000 {
+            let origin = Vec3::new(rng.f32(), rng.f32(), rng.f32()) * 3.6 - 0.3;
+            if field(origin.as_dvec3()) > 0.45 {
+                continue;
+            }
+            let dir = (Vec3::new(rng.f32(), rng.f32(), rng.f32()) - 0.5).normalize();
+            let ray = Ray { origin, dir };
+            let (o, d) = (origin.as_dvec3(), dir.as_dvec3());
+            let mut all: Vec<Cand> = grid
+                .balls
+                .iter()
+                .enumerate()
+                .filter_map(|(k, fb)| {
+                    let oc = fb.center - o;
+                    let b = oc.dot(d);
+                    let h2 = (oc - b * d).length_squared();
+                    let half = (fb.r2 - h2).sqrt();
+                    (h2 < fb.r2 && b + half > 0.0)
+                        .then(|| Cand::new(fb.center, fb.r2, b - half, k as u32))
+                })
+                .collect();
+            all.sort_unstable_by(|a, b| a.t_lo().total_cmp(&b.t_lo()));
+            let want = ray::first_hit_tile(&params, &ray, &all, &mut scratch)
+                .t
+                .is_some();
+            assert_eq!(
+                grid.blocked(&params, &ray, &mut s),
+                want,
+                "from {origin} towards {dir}"
+            );
+            tried += 1;
+            blocked += want as u32;
+        }
+        assert!(
+            blocked > 100 && tried - blocked > 100,
+            "{blocked} of {tried}"
+        );
+    }
+}
