@@ -151,12 +151,23 @@ impl ShadowGrid {
     /// grid's) crosses `ray` (unit direction) at some `t > 0`; the ray
     /// must start outside the surface (`F < T`).
     pub fn blocked(&self, p: &RayParams<'_>, ray: &Ray, s: &mut ShadowScratch) -> bool {
-        let o = ray.origin.as_dvec3();
-        let d = ray.dir.as_dvec3();
-        self.walk(ray, |idx| {
+        let margin = 1e-6 * self.cell;
+        self.walk(ray, |idx, t_a, t_b| {
             if self.bound[idx] < p.threshold {
                 return false;
             }
+            // From where the ray enters the cell, with the balls that reach
+            // its stretch of the ray in the cell: a crossing in the cell is
+            // theirs, and a root of theirs anywhere blocks the ray (starting
+            // inside their field, the solver finds where it leaves: the
+            // whole field was at `T` or more there too).
+            let entry = Ray {
+                origin: ray.at(t_a as f32),
+                dir: ray.dir,
+            };
+            let o = entry.origin.as_dvec3();
+            let d = entry.dir.as_dvec3();
+            let len = t_b - t_a + margin;
             s.cands.clear();
             for &k in self.bins.get(idx) {
                 let fb = &self.balls[k as usize];
@@ -167,7 +178,7 @@ impl ShadowGrid {
                     continue;
                 }
                 let half = (fb.r2 - h2).sqrt();
-                if b + half <= 0.0 {
+                if b + half <= 0.0 || b - half >= len {
                     continue;
                 }
                 s.cands.push(Cand::new(fb.center, fb.r2, b - half, k));
@@ -177,15 +188,16 @@ impl ShadowGrid {
             }
             s.cands
                 .sort_unstable_by(|a, b| a.t_lo().total_cmp(&b.t_lo()));
-            ray::first_hit_tile(p, ray, &s.cands, &mut s.scratch)
+            ray::first_hit_tile(p, &entry, &s.cands, &mut s.scratch)
                 .t
                 .is_some()
         })
     }
 
     /// Calls `visit` with the index of every cell `ray` crosses from its
-    /// origin on, in order, until it returns true (then true).
-    fn walk(&self, ray: &Ray, mut visit: impl FnMut(usize) -> bool) -> bool {
+    /// origin on, in order, and the stretch `[t_a, t_b]` of the ray in it,
+    /// until it returns true (then true).
+    fn walk(&self, ray: &Ray, mut visit: impl FnMut(usize, f64, f64) -> bool) -> bool {
         let o = (ray.origin.as_dvec3() - self.origin) / self.cell;
         let d = ray.dir.as_dvec3();
         let dims = self.dims.as_dvec3();
@@ -212,16 +224,19 @@ impl ShadowGrid {
             let t = (plane - o) * inv;
             DVec3::select(d.abs().cmpgt(DVec3::ZERO), t, DVec3::INFINITY)
         };
+        let mut t_prev = t_enter;
         loop {
             let idx = ((c.z * self.dims.y + c.y) * self.dims.x + c.x) as usize;
-            if visit(idx) {
-                return true;
-            }
             let t = next_t(c);
             let m = t.min_element();
+            let t_next = m.min(t_exit);
+            if visit(idx, t_prev * self.cell, t_next * self.cell) {
+                return true;
+            }
             if m > t_exit || !m.is_finite() {
                 return false;
             }
+            t_prev = m;
             let axis = if t.x == m {
                 0
             } else if t.y == m {
@@ -240,7 +255,7 @@ impl ShadowGrid {
     #[cfg(test)]
     fn gather(&self, ray: &Ray, out: &mut Vec<u32>) {
         out.clear();
-        self.walk(ray, |idx| {
+        self.walk(ray, |idx, _, _| {
             out.extend_from_slice(self.bins.get(idx));
             false
         });
