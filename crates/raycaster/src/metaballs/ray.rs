@@ -133,6 +133,37 @@ pub fn tile_cands(balls: &[FrameBall], candidates: &[u32], out: &mut Vec<Cand>) 
     }));
 }
 
+/// Where a ray's line `o + t·d` (unit `d`) passes through a ball.
+#[derive(Debug, Clone, Copy)]
+pub struct Chord {
+    /// The `t` closest to the centre.
+    pub b: f64,
+    /// The centre's squared distance from the line.
+    pub h2: f64,
+    /// Entry and exit.
+    pub t0: f64,
+    pub t1: f64,
+}
+
+/// The chord of the ball (`center`, radius² `r2`) on the line `o + t·d`,
+/// `None` when the line misses it.
+#[inline(always)]
+pub fn chord(center: DVec3, r2: f64, o: DVec3, d: DVec3) -> Option<Chord> {
+    let oc = center - o;
+    let b = oc.dot(d);
+    let h2 = (oc - b * d).length_squared();
+    if h2 >= r2 {
+        return None;
+    }
+    let half = (r2 - h2).sqrt();
+    Some(Chord {
+        b,
+        h2,
+        t0: b - half,
+        t1: b + half,
+    })
+}
+
 /// What a frame's rays share.
 #[derive(Debug, Clone, Copy)]
 pub struct RayParams<'a> {
@@ -242,14 +273,9 @@ fn first_hit_n<const N: usize, const BOUND: bool>(
                 break;
             }
             next += 1;
-            let oc = fb.center - o;
-            let b = oc.dot(d);
-            let h2 = (oc - b * d).length_squared();
-            if h2 >= fb.r2 {
+            let Some(Chord { b, h2, t0, t1 }) = chord(fb.center, fb.r2, o, d) else {
                 continue;
-            }
-            let half = (fb.r2 - h2).sqrt();
-            let (t0, t1) = (b - half, b + half);
+            };
             if t1 <= t_cur {
                 continue;
             }

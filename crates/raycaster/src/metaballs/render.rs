@@ -80,7 +80,7 @@ pub struct MetaballRenderer {
     /// The last shadow grid, by the [`Balls::id`] and kernel it was built
     /// for: while they do not change (a moving camera, new lights) it is
     /// reused.
-    shadow_grid: Option<(u64, Kernel, Option<ShadowGrid>)>,
+    shadow_grid: Option<((u64, Kernel), Option<ShadowGrid>)>,
 }
 
 impl std::fmt::Debug for MetaballRenderer {
@@ -193,23 +193,21 @@ impl MetaballRenderer {
         };
         // Shadow casters include the balls the camera does not see.
         let grid_start = Instant::now();
-        let key = (balls.id(), options.kernel);
-        if options.shadows
-            && options.shading
-            && self
-                .shadow_grid
+        let shadow_grid = if options.shadows && options.shading {
+            let key = (balls.id(), options.kernel);
+            if self.shadow_grid.as_ref().is_none_or(|(k, _)| *k != key) {
+                let build = || ShadowGrid::build(balls, options.kernel);
+                let grid = match &self.pool {
+                    None => build(),
+                    Some(pool) => pool.install(build),
+                };
+                self.shadow_grid = Some((key, grid));
+            }
+            self.shadow_grid
                 .as_ref()
-                .is_none_or(|(id, kernel, _)| (*id, *kernel) != key)
-        {
-            let grid = match &self.pool {
-                None => ShadowGrid::build(balls, options.kernel),
-                Some(pool) => pool.install(|| ShadowGrid::build(balls, options.kernel)),
-            };
-            self.shadow_grid = Some((key.0, key.1, grid));
-        }
-        let shadow_grid = match &self.shadow_grid {
-            Some((_, _, grid)) if options.shadows && options.shading => grid.as_ref(),
-            _ => None,
+                .and_then(|(_, grid)| grid.as_ref())
+        } else {
+            None
         };
         let shadow_grid_time = grid_start.elapsed();
         let shadow_params = shadow_grid.map(|g| RayParams {

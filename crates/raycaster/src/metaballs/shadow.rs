@@ -25,7 +25,7 @@ use rayon::prelude::*;
 
 use super::balls::Balls;
 use super::kernel::Kernel;
-use super::ray::{self, Cand, RayParams, Scratch};
+use super::ray::{self, Cand, Chord, RayParams, Scratch, chord};
 use super::tiles::FrameBall;
 use crate::geometry::Ray;
 use crate::render::bins::Bins;
@@ -42,9 +42,7 @@ const CELLS_PER_BALL: f64 = 8.0;
 pub struct ShadowGrid {
     /// The balls, indexed as the bins' items.
     pub balls: Vec<FrameBall>,
-    origin: DVec3,
-    cell: f64,
-    dims: IVec3,
+    cells: Cells,
     bins: Bins,
     /// Per cell, at least the field anywhere in it.
     bound: Vec<f64>,
@@ -55,6 +53,46 @@ pub struct ShadowGrid {
 pub struct ShadowScratch {
     scratch: Scratch,
     cands: Vec<Cand>,
+}
+
+/// A grid's geometry: `dims` cubic cells per axis, `size` wide, from
+/// `origin`.
+#[derive(Debug, Clone, Copy)]
+struct Cells {
+    origin: DVec3,
+    size: f64,
+    dims: IVec3,
+}
+
+impl Cells {
+    fn count(&self) -> usize {
+        (self.dims.x * self.dims.y * self.dims.z) as usize
+    }
+
+    /// Cell `c`'s index (x fastest).
+    fn index(&self, c: IVec3) -> usize {
+        ((c.z * self.dims.y + c.y) * self.dims.x + c.x) as usize
+    }
+
+    /// The cell of index `idx`.
+    fn coords(&self, idx: usize) -> IVec3 {
+        let (i, d) = (idx as i32, self.dims);
+        IVec3::new(i % d.x, (i / d.x) % d.y, i / (d.x * d.y))
+    }
+
+    /// The cell holding `p`, clamped to the grid.
+    fn containing(&self, p: DVec3) -> IVec3 {
+        ((p - self.origin) / self.size)
+            .floor()
+            .as_ivec3()
+            .clamp(IVec3::ZERO, self.dims - 1)
+    }
+
+    /// The squared distance from `p` to cell `c`'s box.
+    fn dist2(&self, c: IVec3, p: DVec3) -> f64 {
+        let lo = self.origin + c.as_dvec3() * self.size;
+        (p.clamp(lo, lo + self.size) - p).length_squared()
+    }
 }
 
 impl ShadowGrid {
@@ -75,8 +113,12 @@ impl ShadowGrid {
         let extent = (hi - lo).max(DVec3::splat(1e-9));
         // Cells a radius wide, or wider when that would make too many.
         let budget = CELLS_PER_BALL * all.len() as f64 + 64.0;
-        let cell = r_max.max((extent.x * extent.y * extent.z / budget).cbrt());
-        let dims = (extent / cell).ceil().max(DVec3::ONE).as_ivec3();
+        let size = r_max.max((extent.x * extent.y * extent.z / budget).cbrt());
+        let cells = Cells {
+            origin: lo,
+            size,
+            dims: (extent / size).ceil().max(DVec3::ONE).as_ivec3(),
+        };
         let frame_balls: Vec<FrameBall> = all
             .iter()
             .map(|b| {
@@ -90,28 +132,23 @@ impl ShadowGrid {
                 }
             })
             .collect();
-        let cell_of = |p: DVec3| {
-            ((p - lo) / cell)
-                .floor()
-                .as_ivec3()
-                .clamp(IVec3::ZERO, dims - 1)
-        };
-        let n = (dims.x * dims.y * dims.z) as usize;
+        let n = cells.count();
         let bins = Bins::build(n, frame_balls.len(), |k, put| {
             let fb = &frame_balls[k];
             let r = fb.r2.sqrt();
-            let (a, b) = (cell_of(fb.center - r), cell_of(fb.center + r));
+            let (a, b) = (
+                cells.containing(fb.center - r),
+                cells.containing(fb.center + r),
+            );
             // The cells the ball's support reaches into (a little more
             // for rounding), not all those its bounding box touches.
             let reach = fb.r2 * (1.0 + 1e-6);
             for z in a.z..=b.z {
                 for y in a.y..=b.y {
                     for x in a.x..=b.x {
-                        let c = IVec3::new(x, y, z).as_dvec3();
-                        let (lo_c, hi_c) = (lo + c * cell, lo + (c + 1.0) * cell);
-                        let d2 = (fb.center.clamp(lo_c, hi_c) - fb.center).length_squared();
-                        if d2 <= reach {
-                            put(((z * dims.y + y) * dims.x + x) as usize);
+                        let c = IVec3::new(x, y, z);
+                        if cells.dist2(c, fb.center) <= reach {
+                            put(cells.index(c));
                         }
                     }
                 }
@@ -120,15 +157,12 @@ impl ShadowGrid {
         let bound = (0..n)
             .into_par_iter()
             .map(|idx| {
-                let i = idx as i32;
-                let c = IVec3::new(i % dims.x, (i / dims.x) % dims.y, i / (dims.x * dims.y));
-                let (lo_c, hi_c) = (lo + c.as_dvec3() * cell, lo + (c + 1).as_dvec3() * cell);
+                let c = cells.coords(idx);
                 bins.get(idx)
                     .iter()
                     .map(|&k| {
                         let fb = &frame_balls[k as usize];
-                        let d2 = (fb.center.clamp(lo_c, hi_c) - fb.center).length_squared();
-                        let s = d2 * fb.inv_r2;
+                        let s = cells.dist2(c, fb.center) * fb.inv_r2;
                         if s >= 1.0 { 0.0 } else { kernel.at_s(s) }
                     })
                     .sum::<f64>()
@@ -140,9 +174,7 @@ impl ShadowGrid {
         Some(ShadowGrid {
             balls: frame_balls,
             bound,
-            origin: lo,
-            cell,
-            dims,
+            cells,
             bins,
         })
     }
@@ -151,7 +183,7 @@ impl ShadowGrid {
     /// grid's) crosses `ray` (unit direction) at some `t > 0`; the ray
     /// must start outside the surface (`F < T`).
     pub fn blocked(&self, p: &RayParams<'_>, ray: &Ray, s: &mut ShadowScratch) -> bool {
-        let margin = 1e-6 * self.cell;
+        let margin = 1e-6 * self.cells.size;
         self.walk(ray, |idx, t_a, t_b| {
             if self.bound[idx] < p.threshold {
                 return false;
@@ -171,17 +203,12 @@ impl ShadowGrid {
             s.cands.clear();
             for &k in self.bins.get(idx) {
                 let fb = &self.balls[k as usize];
-                let oc = fb.center - o;
-                let b = oc.dot(d);
-                let h2 = (oc - b * d).length_squared();
-                if h2 >= fb.r2 {
-                    continue;
+                match chord(fb.center, fb.r2, o, d) {
+                    Some(Chord { t0, t1, .. }) if t1 > 0.0 && t0 < len => {
+                        s.cands.push(Cand::new(fb.center, fb.r2, t0, k))
+                    }
+                    _ => {}
                 }
-                let half = (fb.r2 - h2).sqrt();
-                if b + half <= 0.0 || b - half >= len {
-                    continue;
-                }
-                s.cands.push(Cand::new(fb.center, fb.r2, b - half, k));
             }
             if s.cands.is_empty() {
                 return false;
@@ -198,20 +225,20 @@ impl ShadowGrid {
     /// origin on, in order, and the stretch `[t_a, t_b]` of the ray in it,
     /// until it returns true (then true).
     fn walk(&self, ray: &Ray, mut visit: impl FnMut(usize, f64, f64) -> bool) -> bool {
-        let o = (ray.origin.as_dvec3() - self.origin) / self.cell;
+        let Cells { origin, size, dims } = self.cells;
+        let o = (ray.origin.as_dvec3() - origin) / size;
         let d = ray.dir.as_dvec3();
-        let dims = self.dims.as_dvec3();
         // Enter the grid's box (in cell units) if the origin is outside it.
         let inv = d.recip();
         let t0 = (DVec3::ZERO - o) * inv;
-        let t1 = (dims - o) * inv;
+        let t1 = (dims.as_dvec3() - o) * inv;
         let t_enter = t0.min(t1).max_element().max(0.0);
         let t_exit = t0.max(t1).min_element();
         if t_enter.is_nan() || t_exit.is_nan() || t_enter > t_exit {
             return false;
         }
         let start = o + d * t_enter;
-        let mut c = start.floor().as_ivec3().clamp(IVec3::ZERO, self.dims - 1);
+        let mut c = start.floor().as_ivec3().clamp(IVec3::ZERO, dims - 1);
         let step = IVec3::new(
             if d.x >= 0.0 { 1 } else { -1 },
             if d.y >= 0.0 { 1 } else { -1 },
@@ -226,11 +253,10 @@ impl ShadowGrid {
         };
         let mut t_prev = t_enter;
         loop {
-            let idx = ((c.z * self.dims.y + c.y) * self.dims.x + c.x) as usize;
             let t = next_t(c);
             let m = t.min_element();
             let t_next = m.min(t_exit);
-            if visit(idx, t_prev * self.cell, t_next * self.cell) {
+            if visit(self.cells.index(c), t_prev * size, t_next * size) {
                 return true;
             }
             if m > t_exit || !m.is_finite() {
@@ -245,7 +271,7 @@ impl ShadowGrid {
                 2
             };
             c[axis] += step[axis];
-            if c[axis] < 0 || c[axis] >= self.dims[axis] {
+            if c[axis] < 0 || c[axis] >= dims[axis] {
                 return false;
             }
         }
@@ -270,19 +296,29 @@ mod tests {
     use crate::metaballs::balls::Ball;
     use crate::metaballs::ray::Scratch;
 
+    /// `n` balls with centres in `[0, spread)³` and radii in `radii`.
+    fn random_balls(
+        rng: &mut fastrand::Rng,
+        n: usize,
+        spread: f32,
+        radii: (f32, f32),
+    ) -> Vec<Ball> {
+        (0..n)
+            .map(|_| Ball {
+                center: Vec3::new(rng.f32(), rng.f32(), rng.f32()) * spread,
+                radius: radii.0 + (radii.1 - radii.0) * rng.f32(),
+                value: 0.0,
+            })
+            .collect()
+    }
+
     /// The gathered balls include every ball the ray's half-line meets
     /// (brute force), for random balls and rays from inside and outside
     /// the grid.
     #[test]
     fn the_walk_gathers_every_ball_the_ray_meets() {
         let mut rng = fastrand::Rng::with_seed(3);
-        let list: Vec<Ball> = (0..300)
-            .map(|_| Ball {
-                center: Vec3::new(rng.f32(), rng.f32(), rng.f32()) * 4.0,
-                radius: 0.1 + 0.3 * rng.f32(),
-                value: 0.0,
-            })
-            .collect();
+        let list = random_balls(&mut rng, 300, 4.0, (0.1, 0.4));
         let balls = Balls::new(list.clone(), false).unwrap();
         let grid = ShadowGrid::build(&balls, Kernel::Wyvill).unwrap();
         let mut found = Vec::new();
@@ -394,13 +430,7 @@ mod tests {
     fn cell_by_cell_agrees_with_all_the_balls_at_once() {
         let kernel = Kernel::Wyvill;
         let mut rng = fastrand::Rng::with_seed(5);
-        let list: Vec<Ball> = (0..200)
-            .map(|_| Ball {
-                center: Vec3::new(rng.f32(), rng.f32(), rng.f32()) * 3.0,
-                radius: 0.3 + 0.4 * rng.f32(),
-                value: 0.0,
-            })
-            .collect();
+        let list = random_balls(&mut rng, 200, 3.0, (0.3, 0.7));
         let balls = Balls::new(list, false).unwrap();
         let grid = ShadowGrid::build(&balls, kernel).unwrap();
         let params = RayParams {
@@ -436,12 +466,8 @@ mod tests {
                 .iter()
                 .enumerate()
                 .filter_map(|(k, fb)| {
-                    let oc = fb.center - o;
-                    let b = oc.dot(d);
-                    let h2 = (oc - b * d).length_squared();
-                    let half = (fb.r2 - h2).sqrt();
-                    (h2 < fb.r2 && b + half > 0.0)
-                        .then(|| Cand::new(fb.center, fb.r2, b - half, k as u32))
+                    let c = chord(fb.center, fb.r2, o, d)?;
+                    (c.t1 > 0.0).then(|| Cand::new(fb.center, fb.r2, c.t0, k as u32))
                 })
                 .collect();
             all.sort_unstable_by(|a, b| a.t_lo().total_cmp(&b.t_lo()));

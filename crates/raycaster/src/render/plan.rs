@@ -276,36 +276,25 @@ impl FramePlan {
     /// ([`FramePlan::light_proxies`]); the frame driver calls it for the
     /// rays it casts from the camera.
     pub fn draw_proxy(&mut self, scene: &Scene, options: &RenderOptions) {
-        self.proxy = match self.prepared.1.iso_cells() {
-            Some(cells)
-                if options.ess
-                    && options.mode == crate::integrator::RenderMode::Iso
-                    && ProxyDepth::pays(cells, &self.rect) =>
-            {
-                Some(ProxyDepth::build(
-                    &self.camera,
-                    self.rect,
-                    scene.grid(),
-                    cells,
-                ))
-            }
-            _ => None,
+        self.proxy = None;
+        self.light_proxies = Vec::new();
+        let Some(cells) = self.prepared.1.iso_cells() else {
+            return;
         };
-        self.light_proxies = match self.prepared.1.iso_cells() {
-            Some(cells)
-                if options.ess
-                    && options.shadows
-                    && options.shading
-                    && options.mode == crate::integrator::RenderMode::Iso =>
-            {
-                let grid = scene.grid();
-                self.lights
-                    .iter()
-                    .map(|&l| LightProxy::build(l, grid, cells))
-                    .collect()
-            }
-            _ => Vec::new(),
-        };
+        if !(options.ess && options.mode == crate::integrator::RenderMode::Iso) {
+            return;
+        }
+        let grid = scene.grid();
+        if ProxyDepth::pays(cells, &self.rect) {
+            self.proxy = Some(ProxyDepth::build(&self.camera, self.rect, grid, cells));
+        }
+        if options.shadows && options.shading {
+            self.light_proxies = self
+                .lights
+                .iter()
+                .map(|&l| LightProxy::build(l, grid, cells))
+                .collect();
+        }
     }
 
     /// The integrators' view of this frame for the concretely typed

@@ -276,21 +276,43 @@ mod tests {
     use crate::volume::AnyVolume;
     use glam::UVec3;
 
+    /// A sphere's distance field (×10) on an anisotropic grid, and its
+    /// skip grid for iso value `iso`.
+    fn sphere_cells(iso: f32) -> (Grid, SkipGrid) {
+        let grid = Grid::new(UVec3::new(20, 17, 23), Vec3::new(1.0, 0.8, 1.2));
+        let centre = Vec3::new(9.0, 8.0, 11.0);
+        let volume = AnyVolume::from_fn(grid, |v| (v.as_vec3() - centre).length() * 10.0);
+        let macrocells = MacrocellGrid::build_any(&volume, 4, None);
+        let skip = SkipGrid::for_iso(&volume, &macrocells, iso);
+        (grid, skip)
+    }
+
+    /// The straddling cells' boxes, grown as [`ProxyDepth::build`] grows
+    /// them.
+    fn grown_boxes(grid: &Grid, cells: &IsoCells) -> Vec<Aabb> {
+        cells
+            .straddling_cells()
+            .iter()
+            .map(|c| {
+                let c = c.as_vec3();
+                Aabb::new(
+                    grid.voxel_to_world(c - Vec3::splat(MARGIN)),
+                    grid.voxel_to_world(c + Vec3::splat(1.0 + MARGIN)),
+                )
+            })
+            .collect()
+    }
+
     /// Every pixel's depth is at or before the nearest entry into a
     /// straddling cell's box (found here by brute force), finite wherever
     /// a ray enters one, for both projections; and some rays that enter
     /// the volume are culled.
     #[test]
     fn depths_bound_the_nearest_box_entries() {
-        let grid = Grid::new(UVec3::new(20, 17, 23), Vec3::new(1.0, 0.8, 1.2));
-        let centre = Vec3::new(9.0, 8.0, 11.0);
-        let volume = AnyVolume::from_fn(grid, |v| (v.as_vec3() - centre).length() * 10.0);
-        let macrocells = MacrocellGrid::build_any(&volume, 4, None);
-        let iso = 55.0;
-        let skip = SkipGrid::for_iso(&volume, &macrocells, iso);
+        let (grid, skip) = sphere_cells(55.0);
         let cells = skip.iso_cells().unwrap();
-        let corners = cells.straddling_cells();
-        assert!(corners.len() > 100);
+        let boxes = grown_boxes(&grid, cells);
+        assert!(boxes.len() > 100);
         for projection in [Projection::Perspective, Projection::Orthographic] {
             let mut cam = Camera::look_at(
                 Vec3::new(40.0, 25.0, -18.0),
@@ -302,22 +324,14 @@ mod tests {
             let frame = cam.frame().unwrap();
             let rect = frame.screen_rect(&grid.bounds());
             let proxy = ProxyDepth::build(&frame, rect, &grid, cells);
-            assert_eq!(proxy.boxes(), corners.len());
+            assert_eq!(proxy.boxes(), boxes.len());
             let (mut covered, mut culled) = (0, 0);
             for j in 0..40 {
                 for i in 0..48 {
                     let ray = frame.ray(i, j);
-                    let want = corners
+                    let want = boxes
                         .iter()
-                        .map(|c| {
-                            let c = c.as_vec3();
-                            Aabb::new(
-                                grid.voxel_to_world(c - Vec3::splat(MARGIN)),
-                                grid.voxel_to_world(c + Vec3::splat(1.0 + MARGIN)),
-                            )
-                            .intersect(&ray)
-                            .map_or(f32::INFINITY, |(t_in, _)| t_in)
-                        })
+                        .filter_map(|b| b.intersect(&ray).map(|(t_in, _)| t_in))
                         .fold(f32::INFINITY, f32::min);
                     let got = proxy.at(i, j);
                     assert!(got >= 0.0);
@@ -337,23 +351,9 @@ mod tests {
     /// reach cuts most rays well short of the volume's edge.
     #[test]
     fn light_reach_bounds_the_farthest_box_exits() {
-        let grid = Grid::new(UVec3::new(20, 17, 23), Vec3::new(1.0, 0.8, 1.2));
-        let centre = Vec3::new(9.0, 8.0, 11.0);
-        let volume = AnyVolume::from_fn(grid, |v| (v.as_vec3() - centre).length() * 10.0);
-        let macrocells = MacrocellGrid::build_any(&volume, 4, None);
-        let skip = SkipGrid::for_iso(&volume, &macrocells, 45.0);
+        let (grid, skip) = sphere_cells(45.0);
         let cells = skip.iso_cells().unwrap();
-        let boxes: Vec<Aabb> = cells
-            .straddling_cells()
-            .iter()
-            .map(|c| {
-                let c = c.as_vec3();
-                Aabb::new(
-                    grid.voxel_to_world(c - Vec3::splat(MARGIN)),
-                    grid.voxel_to_world(c + Vec3::splat(1.0 + MARGIN)),
-                )
-            })
-            .collect();
+        let boxes = grown_boxes(&grid, cells);
         let bounds = grid.bounds();
         let mut rng = fastrand::Rng::with_seed(7);
         for light in [
