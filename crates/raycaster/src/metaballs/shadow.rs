@@ -113,11 +113,17 @@ impl ShadowGrid {
         let extent = (hi - lo).max(DVec3::splat(1e-9));
         // Cells a radius wide, or wider when that would make too many.
         let budget = CELLS_PER_BALL * all.len() as f64 + 64.0;
-        let size = r_max.max((extent.x * extent.y * extent.z / budget).cbrt());
+        let mut size = r_max.max((extent.x * extent.y * extent.z / budget).cbrt());
+        // Axes thinner than a cell still count one: grow the cells until
+        // the count is within the budget (balls strung along a line).
+        let dims_for = |size: f64| (extent / size).ceil().max(DVec3::ONE);
+        while dims_for(size).element_product() > budget {
+            size *= 1.25;
+        }
         let cells = Cells {
             origin: lo,
             size,
-            dims: (extent / size).ceil().max(DVec3::ONE).as_ivec3(),
+            dims: dims_for(size).as_ivec3(),
         };
         let frame_balls: Vec<FrameBall> = all
             .iter()
@@ -421,6 +427,44 @@ mod tests {
             if blocked { shadowed += 1 } else { lit += 1 }
         }
         assert!(shadowed > 20 && lit > 200, "{shadowed} shadowed, {lit} lit");
+    }
+
+    /// Balls strung along a very long line get a grid within the budget
+    /// (not one cell a radius wide per step of the line), and shadows
+    /// still work there.
+    #[test]
+    fn a_long_line_of_balls_keeps_the_grid_small() {
+        let list: Vec<Ball> = (0..4)
+            .map(|i| Ball {
+                center: Vec3::new(i as f32 * 1e8, 0.0, 0.0),
+                radius: 1.0,
+                value: 0.0,
+            })
+            .chain([Ball {
+                center: Vec3::new(0.0, 2.0, 0.0),
+                radius: 1.0,
+                value: 0.0,
+            }])
+            .collect();
+        let balls = Balls::new(list, false).unwrap();
+        let grid = ShadowGrid::build(&balls, Kernel::Wyvill).unwrap();
+        assert!(grid.cells.count() as f64 <= CELLS_PER_BALL * 5.0 + 64.0);
+        let params = RayParams {
+            balls: &grid.balls,
+            kernel: Kernel::Wyvill,
+            threshold: 0.5,
+            scale: 1.0,
+            tol: 1e-5,
+            shading: None,
+            lights: &[],
+        };
+        let mut s = ShadowScratch::default();
+        let up = |x: f32| Ray {
+            origin: Vec3::new(x, 0.7, 0.0),
+            dir: Vec3::Y,
+        };
+        assert!(grid.blocked(&params, &up(0.0), &mut s));
+        assert!(!grid.blocked(&params, &up(1e8), &mut s));
     }
 
     /// The walk's answer, cell by cell with each cell's balls, is the answer
