@@ -52,7 +52,7 @@ impl CellMasks<'_> {
 
     #[inline(always)]
     fn bit(&self, local: UVec3) -> (usize, u64) {
-        let i = ((local.x * self.side + local.y) * self.side + local.z) as usize;
+        let i = self.index(local) as usize;
         (i >> 6, 1u64 << (i & 63))
     }
 
@@ -70,6 +70,26 @@ impl CellMasks<'_> {
     pub fn above(&self, local: UVec3) -> bool {
         let (w, b) = self.bit(local);
         self.above[w] & b != 0
+    }
+
+    /// The bit index of local cell `local`: `(x·m + y)·m + z`. Stepping
+    /// one cell along an axis moves it by `m²`, `m` or 1, so a walk can
+    /// keep it up to date instead of recomputing it.
+    #[inline(always)]
+    pub fn index(&self, local: UVec3) -> u32 {
+        (local.x * self.side + local.y) * self.side + local.z
+    }
+
+    /// [`CellMasks::straddles`] by bit index ([`CellMasks::index`]).
+    #[inline(always)]
+    pub fn straddles_at(&self, i: u32) -> bool {
+        self.straddle[(i >> 6) as usize] & (1u64 << (i & 63)) != 0
+    }
+
+    /// [`CellMasks::above`] by bit index ([`CellMasks::index`]).
+    #[inline(always)]
+    pub fn above_at(&self, i: u32) -> bool {
+        self.above[(i >> 6) as usize] & (1u64 << (i & 63)) != 0
     }
 
     /// True when no cell of the macrocell straddles the iso value.

@@ -491,17 +491,20 @@ impl<'v, V: Volume> Search<'v, V> {
         let mut macrocell = lo / side;
         let mut dda = Dda::new(ray, cell);
         let tol = ray.tol;
+        // The cell's bit in its macrocell's masks, kept up to date as the
+        // DDA steps (one step along axis `a` moves it by `bit_stride[a]`).
+        let bit_stride = [side * side, side, 1];
+        let mut bit = m.index(cell.as_uvec3() - origin) as i32;
         let mut tc = ta;
         loop {
             let te = dda.next.min_element().min(tb).max(tc);
             self.steps += 1;
-            let c = cell.as_uvec3();
-            let local = c - origin;
-            let found = if m.straddles(local) {
+            let found = if m.straddles_at(bit as u32) {
+                let c = cell.as_uvec3();
                 let corners = self.volume.corners(c);
                 self.crossing(ray, c, &corners, tc, te, tol)
             } else {
-                self.one_side(m.above(local), tc, c)
+                self.one_side(m.above_at(bit as u32), tc, cell.as_uvec3())
             };
             if found || te >= tb {
                 return te;
@@ -510,10 +513,10 @@ impl<'v, V: Volume> Search<'v, V> {
             if cell[a] < 0 || cell[a] > self.last[a] {
                 return te;
             }
+            let s = dda.step[a];
             let into = cell[a] - macrocell[a] * side;
             if into < 0 || into >= side {
-                // Into the next macrocell along axis `a`.
-                let s = dda.step[a];
+                // Into the next macrocell along axis `a`, on its far side.
                 macrocell[a] += s;
                 if macrocell[a] < 0 || macrocell[a] >= count[a] {
                     return te;
@@ -524,6 +527,9 @@ impl<'v, V: Volume> Search<'v, V> {
                     _ => return te,
                 }
                 origin[a] = (macrocell[a] * side) as u32;
+                bit -= s * (side - 1) * bit_stride[a];
+            } else {
+                bit += s * bit_stride[a];
             }
             tc = te;
         }
