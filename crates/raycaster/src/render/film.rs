@@ -74,6 +74,11 @@ impl Film {
     /// background: `rgb = C + (1 − A)·background`.
     #[inline]
     pub fn composite(&self, c: Vec4) -> [u8; 3] {
+        // A ray that gathered nothing (most rays of a sparse frame) shows
+        // the background, whose bytes are known.
+        if c == Vec4::ZERO {
+            return self.background_rgb;
+        }
         to_bytes(c.truncate() + (1.0 - c.w) * self.background)
     }
 
