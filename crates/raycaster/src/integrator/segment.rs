@@ -86,8 +86,14 @@ impl RaySegment {
             0
         } else {
             let mut last = ((t_out - t0) / step).floor().max(0.0) as u32;
-            while last > 0 && t0 + last as f32 * step > t_out {
+            // The estimate is almost always right: test it once before
+            // looping (a bare loop is vectorised into a search whose set-up
+            // costs every ray more than the loop ever runs).
+            if last > 0 && t0 + last as f32 * step > t_out {
                 last -= 1;
+                while last > 0 && t0 + last as f32 * step > t_out {
+                    last -= 1;
+                }
             }
             while t0 + (last + 1) as f32 * step <= t_out {
                 last += 1;
