@@ -4,7 +4,8 @@
 //! The ray takes its tile's candidates in `t_lo` order, as they can
 //! matter: a candidate is tested (ray against sphere) only once the sweep
 //! has reached its `t_lo`. Each ball the ray meets gives an entry and an
-//! exit event (the exit queued when the ball is entered); between
+//! exit event, queued in a binary heap (the exit when the ball is entered:
+//! it takes the entry's place at the heap's top, one sift); between
 //! consecutive events the set of active balls is fixed, so `F − T` is a
 //! polynomial in `t` there (degree 6 for Wyvill, 4 for Murakami).
 //!
@@ -64,8 +65,8 @@ impl Event {
 }
 
 /// A ball the ray meets: `b = (c − o)·d`, `h2` the squared distance of the
-/// centre from the ray's line, `t1` where the ray leaves it, `peak` the
-/// kernel's largest value along the ray (at `t = b`).
+/// centre from the ray's line, `t1` where the ray leaves it; from its
+/// entry on, `peak` the kernel's largest value along the ray (at `t = b`).
 ///
 /// `kp` is the ball's polynomial as added at its entry, in the coordinates
 /// of origin `epoch`: while the origin has not moved, the exit subtracts
@@ -97,16 +98,19 @@ pub struct Scratch {
 pub struct Cand {
     center: DVec3,
     r2: f64,
+    inv_r2: f64,
     t_lo: f64,
     ball: u32,
 }
 
 impl Cand {
-    /// A candidate ball `ball` (centre, radius²) no ray enters before `t_lo`.
-    pub fn new(center: DVec3, r2: f64, t_lo: f64, ball: u32) -> Self {
+    /// A candidate: ball `ball`, which is `fb`, and no ray enters it
+    /// before `t_lo`.
+    pub fn new(fb: &FrameBall, t_lo: f64, ball: u32) -> Self {
         Cand {
-            center,
-            r2,
+            center: fb.center,
+            r2: fb.r2,
+            inv_r2: fb.inv_r2,
             t_lo,
             ball,
         }
@@ -124,12 +128,7 @@ pub fn tile_cands(balls: &[FrameBall], candidates: &[u32], out: &mut Vec<Cand>) 
     out.clear();
     out.extend(candidates.iter().map(|&k| {
         let fb = &balls[k as usize];
-        Cand {
-            center: fb.center,
-            r2: fb.r2,
-            t_lo: fb.t_lo,
-            ball: k,
-        }
+        Cand::new(fb, fb.t_lo, k)
     }));
 }
 
@@ -261,8 +260,9 @@ fn first_hit_n<const N: usize, const BOUND: bool>(
     let mut peak = 0.0f64;
     let mut active = 0u32;
     let mut t_cur = 0.0f64;
-    // +1: search for F − T rising through 0; −1 when the ray starts inside.
-    let mut sign: Option<f64> = None;
+    // +1: search for F − T rising through 0; −1 when the ray starts inside;
+    // 0 until the first interval tested.
+    let mut sign = 0.0f64;
     let mut next = 0usize;
     loop {
         // Take every candidate that may enter before the next event.
@@ -280,21 +280,23 @@ fn first_hit_n<const N: usize, const BOUND: bool>(
                 continue;
             }
             let slot = s.met.len() as u32;
-            let k = fb.ball;
             s.met.push(Met {
-                ball: k,
+                ball: fb.ball,
                 b,
                 h2,
-                inv_r2: p.balls[k as usize].inv_r2,
+                inv_r2: fb.inv_r2,
                 t1,
-                peak: peak_of(kernel, h2, p.balls[k as usize].inv_r2),
+                peak: 0.0,
                 epoch: u32::MAX,
                 kp: [0.0; MAX_TERMS],
             });
             // The exit is queued when the ball is entered.
             s.heap.push(Reverse(Event::new(t0.max(t_cur), slot, false)));
         }
-        let Some(Reverse(ev)) = s.heap.pop() else {
+        // The next event stays in the heap until it is done with: an entry
+        // gives its place to the ball's exit (one sift instead of a pop and
+        // a push).
+        let Some(&Reverse(ev)) = s.heap.peek() else {
             return RayResult {
                 t: None,
                 met: s.met.len() as u32,
@@ -302,17 +304,17 @@ fn first_hit_n<const N: usize, const BOUND: bool>(
         };
         let t_ev = ev.t();
         // The interval [t_cur, t_ev] with the active set fixed.
-        if active > 0
-            && t_ev > t_cur
-            && (!BOUND || sign == Some(-1.0) || peak + PEAK_SLACK >= p.threshold)
+        if active > 0 && t_ev > t_cur && (!BOUND || sign < 0.0 || peak + PEAK_SLACK >= p.threshold)
         {
             // F − T in the interval's own coordinate x = (t − t_cur)/S.
             let mut q = poly;
             poly::shift_n::<N>(&mut q, (t_cur - t_org) * inv_sc);
             let len = (t_ev - t_cur) * inv_sc;
             q[0] -= p.threshold;
-            let sg = *sign.get_or_insert(if q[0] > 0.0 { -1.0 } else { 1.0 });
-            if sg < 0.0 {
+            if sign == 0.0 {
+                sign = if q[0] > 0.0 { -1.0 } else { 1.0 };
+            }
+            if sign < 0.0 {
                 q.iter_mut().for_each(|c| *c = -*c);
             }
             if let Some(x) = poly::first_root_n::<N>(&q, len, p.tol) {
@@ -325,6 +327,7 @@ fn first_hit_n<const N: usize, const BOUND: bool>(
         t_cur = t_ev;
         let slot = ev.slot();
         if ev.exit() {
+            s.heap.pop();
             active -= 1;
             if active == 0 {
                 poly = [0.0; MAX_TERMS];
@@ -354,6 +357,7 @@ fn first_hit_n<const N: usize, const BOUND: bool>(
             }
             active += 1;
             let m = &mut s.met[slot as usize];
+            m.peak = peak_of(kernel, m.h2, m.inv_r2);
             peak += m.peak;
             let kp = compose_at(kernel, m, t_org, sc);
             for (a, c) in poly.iter_mut().zip(kp).take(N + 1) {
@@ -361,8 +365,10 @@ fn first_hit_n<const N: usize, const BOUND: bool>(
             }
             m.kp = kp;
             m.epoch = epoch;
-            let t1 = m.t1;
-            s.heap.push(Reverse(Event::new(t1, slot, true)));
+            let exit = Reverse(Event::new(m.t1, slot, true));
+            if let Some(mut top) = s.heap.peek_mut() {
+                *top = exit;
+            }
         }
     }
 }

@@ -211,7 +211,7 @@ impl ShadowGrid {
                 let fb = &self.balls[k as usize];
                 match chord(fb.center, fb.r2, o, d) {
                     Some(Chord { t0, t1, .. }) if t1 > 0.0 && t0 < len => {
-                        s.cands.push(Cand::new(fb.center, fb.r2, t0, k))
+                        s.cands.push(Cand::new(fb, t0, k))
                     }
                     _ => {}
                 }
@@ -511,7 +511,7 @@ mod tests {
                 .enumerate()
                 .filter_map(|(k, fb)| {
                     let c = chord(fb.center, fb.r2, o, d)?;
-                    (c.t1 > 0.0).then(|| Cand::new(fb.center, fb.r2, c.t0, k as u32))
+                    (c.t1 > 0.0).then(|| Cand::new(fb, c.t0, k as u32))
                 })
                 .collect();
             all.sort_unstable_by(|a, b| a.t_lo().total_cmp(&b.t_lo()));
