@@ -50,26 +50,18 @@ impl CellMasks<'_> {
         self.side
     }
 
-    #[inline(always)]
-    fn bit(&self, local: UVec3) -> (usize, u64) {
-        let i = self.index(local) as usize;
-        (i >> 6, 1u64 << (i & 63))
-    }
-
     /// Whether local cell `local` (each coordinate `< m`) straddles the iso
     /// value.
     #[inline(always)]
     pub fn straddles(&self, local: UVec3) -> bool {
-        let (w, b) = self.bit(local);
-        self.straddle[w] & b != 0
+        self.straddles_at(self.index(local))
     }
 
     /// Whether local cell `local` lies wholly at or above the iso value
     /// (meaningful for a cell that does not straddle it).
     #[inline(always)]
     pub fn above(&self, local: UVec3) -> bool {
-        let (w, b) = self.bit(local);
-        self.above[w] & b != 0
+        self.above_at(self.index(local))
     }
 
     /// The bit index of local cell `local`: `(x·m + y)·m + z`. Stepping
