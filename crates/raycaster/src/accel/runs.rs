@@ -79,7 +79,7 @@ impl Iterator for SkipRuns<'_> {
         // (possibly one early, never late: see `first_index_at_or_after`),
         // and always advances.
         let (bounds, kind) = match skip.classify(seg.pos(k)) {
-            CellClass::Occupied { bounds, index } => (bounds, RunKind::Cell(index)),
+            CellClass::Occupied { bounds, index, .. } => (bounds, RunKind::Cell(index)),
             CellClass::Empty(bounds) => (bounds, RunKind::Empty),
         };
         let mut end = seg

@@ -26,6 +26,8 @@ pub enum CellClass {
         bounds: Aabb,
         /// Its index in the macrocell grid.
         index: usize,
+        /// Its coordinates in the macrocell grid.
+        coords: UVec3,
     },
 }
 
@@ -225,6 +227,7 @@ impl SkipGrid {
             return CellClass::Occupied {
                 bounds: Aabb::new(lo, lo + Vec3::splat(self.cell)),
                 index,
+                coords: c,
             };
         }
         let cc = c / 2;

@@ -376,15 +376,18 @@ impl<'v, V: Volume> Search<'v, V> {
             let probe = ray.at(t + nudge.min(0.5 * (t1 - t)));
             let (bounds, occupied) = match skip.classify(probe) {
                 CellClass::Empty(b) => (b, None),
-                CellClass::Occupied { bounds, index } => (bounds, Some(index)),
+                CellClass::Occupied {
+                    bounds,
+                    index,
+                    coords,
+                } => (bounds, Some((index, coords))),
             };
             let exit = bounds.exit(ray.origin, ray.inv_dir).min(t1);
             let mut next = exit.max(t + nudge);
-            if let Some(index) = occupied {
+            if let Some((index, coords)) = occupied {
                 match fine.and_then(|f| Some((f, f.masks(index)?))) {
                     Some((fine, m)) if !m.none_straddle() => {
-                        let origin = (bounds.min + 0.5).as_uvec3();
-                        let left = self.straddling_run(ray, fine, (index, m, origin), t, t1);
+                        let left = self.straddling_run(ray, fine, (index, m, coords), t, t1);
                         next = left.max(t + nudge);
                     }
                     masks => {
@@ -460,8 +463,8 @@ impl<'v, V: Volume> Search<'v, V> {
     }
 
     /// The DDA over the interpolation cells from `ta` (at most to `tb`),
-    /// starting in occupied macrocell `index` with masks `m` and lowest cell
-    /// `origin`, and going on into each next macrocell the ray enters as
+    /// starting in occupied macrocell `index` (at `macrocell` in the grid)
+    /// with masks `m`, and going on into each next macrocell the ray enters as
     /// long as that one has straddling cells: a surface spans many
     /// macrocells, and stepping into the next one costs a lookup, not a new
     /// classification and DDA set-up. Opens only the straddling cells.
@@ -472,7 +475,7 @@ impl<'v, V: Volume> Search<'v, V> {
         &mut self,
         ray: &VoxelRay,
         fine: &IsoCells,
-        (mut index, mut m, mut origin): (usize, CellMasks<'_>, UVec3),
+        (mut index, mut m, macrocell): (usize, CellMasks<'_>, UVec3),
         ta: f32,
         tb: f32,
     ) -> f32 {
@@ -483,18 +486,20 @@ impl<'v, V: Volume> Search<'v, V> {
         let count = fine.count().as_ivec3();
         let stride = [(count.y * count.z) as isize, count.z as isize, 1];
         let start = ray.at(ta + ray.nudge.min(0.5 * (tb - ta)));
-        let lo = origin.as_ivec3();
+        // (The macrocell's coordinates come from the caller: dividing its
+        // lowest cell by the side would cost three integer divisions a run.)
+        let mut macrocell = macrocell.as_ivec3();
+        let lo = macrocell * side;
         let mut cell = start
             .floor()
             .as_ivec3()
             .clamp(lo, self.last.min(lo + IVec3::splat(side - 1)));
-        let mut macrocell = lo / side;
         let mut dda = Dda::new(ray, cell);
         let tol = ray.tol;
         // The cell's bit in its macrocell's masks, kept up to date as the
         // DDA steps (one step along axis `a` moves it by `bit_stride[a]`).
         let bit_stride = [side * side, side, 1];
-        let mut bit = m.index(cell.as_uvec3() - origin) as i32;
+        let mut bit = m.index((cell - lo).as_uvec3()) as i32;
         let mut tc = ta;
         loop {
             let te = dda.next.min_element().min(tb).max(tc);
@@ -526,7 +531,6 @@ impl<'v, V: Volume> Search<'v, V> {
                     Some(next) if !next.none_straddle() => m = next,
                     _ => return te,
                 }
-                origin[a] = (macrocell[a] * side) as u32;
                 bit -= s * (side - 1) * bit_stride[a];
             } else {
                 bit += s * bit_stride[a];
