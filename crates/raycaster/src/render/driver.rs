@@ -36,6 +36,25 @@ pub struct FrameJob<'a, V: Volume> {
 }
 
 impl<V: Volume> FrameJob<'_, V> {
+    /// Whether the frame's proxy depths say the ray of pixel `(i, j)`
+    /// meets nothing (exact iso): it shows the background whatever the
+    /// integrator, and only [`FrameJob::enters`] is left to ask.
+    #[inline(always)]
+    pub fn culled(&self, i: u32, j: u32) -> bool {
+        self.plan
+            .proxy
+            .as_ref()
+            .is_some_and(|p| p.at(i, j) == f32::INFINITY)
+    }
+
+    /// Whether the ray of pixel `(i, j)` meets the volume's box (what
+    /// [`FrameJob::segment`] tests first).
+    #[inline(always)]
+    pub fn enters(&self, i: u32, j: u32) -> bool {
+        let ray = self.plan.camera.ray(i, j);
+        self.ctx.volume.grid().bounds().intersect(&ray).is_some()
+    }
+
     /// The ray of pixel `(i, j)` clipped to the volume, `None` when it
     /// misses: jittered and clipped as the frame says, the one place every
     /// schedule gets its rays from. With the frame's proxy depths (exact
@@ -243,6 +262,13 @@ pub(crate) fn render_tile<V: Volume, I: Integrator>(
     let mut counts = RayCounts::default();
     for j in rect.y0..rect.y1 {
         for i in rect.x0..rect.x1 {
+            if job.culled(i, j) {
+                // As the integrator would end with nothing: the background,
+                // counted as entering when the ray meets the box.
+                counts.entered += job.enters(i, j) as u64;
+                rgb.extend_from_slice(&film.background_rgb());
+                continue;
+            }
             let px = match job.segment(i, j) {
                 None => film.background_rgb(),
                 Some(seg) => {
