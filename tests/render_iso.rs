@@ -8,6 +8,7 @@ use common::rays::{RayLab, random_ray};
 use common::scenes::{opts, render, tf_points, u8_volume};
 use glam::{UVec3, Vec3};
 use raycaster::geometry::Ray;
+use raycaster::integrator::{NormalCache, Phong};
 use raycaster::prelude::*;
 
 /// A sphere as a distance field: value 100 + 10·(R − |p − c|) in world
@@ -206,6 +207,57 @@ fn shading_darkens_towards_the_rim() {
         );
     }
     assert_eq!(flat.pixel(32, 32), [153; 3]);
+}
+
+/// The tile loop's normal cache (the corner differences of the last hit's
+/// cell, reused while the next hits fall in the same cell) changes no
+/// colour: rays swept across a bumpy surface like a tile's pixels, where
+/// consecutive hits share cells and leave them, resolve to the same bits
+/// with the cache carried along as without it.
+#[test]
+fn the_normal_cache_changes_no_colour() {
+    let grid = Grid::new(UVec3::new(24, 21, 19), Vec3::new(1.0, 1.2, 0.9));
+    let c = grid.bounds().center();
+    // A sphere with ripples, so the gradient varies inside every cell.
+    let scene = Scene::new(AnyVolume::from_fn(grid, |v| {
+        let p = grid.voxel_to_world(v.as_vec3());
+        100.0 + 10.0 * (8.0 - (p - c).length()) + 3.0 * (1.7 * p.x).sin() * (1.3 * p.y).cos()
+    }));
+    let tf = tf_points(
+        Interpolation::Linear,
+        &[(0.0, [0.6, 0.5, 0.4], 1.0), (300.0, [0.6, 0.5, 0.4], 1.0)],
+    );
+    let lab = RayLab::iso(&scene, &tf, 0.5, 100.0).shaded(Phong::default());
+    let mut cache = NormalCache::default();
+    let (mut hits, mut shared) = (0, 0);
+    let eye = c + Vec3::new(3.0, 5.0, 60.0);
+    let mut last = None;
+    for j in 0..40 {
+        for i in 0..40 {
+            let target = c + Vec3::new(i as f32 - 20.0, j as f32 - 20.0, 0.0) * 0.45;
+            let ray = Ray {
+                origin: eye,
+                dir: (target - eye).normalize(),
+            };
+            let Some((fresh, cached)) = lab.iso_colours(&ray, &mut cache) else {
+                continue;
+            };
+            assert_eq!(
+                fresh.to_array().map(f32::to_bits),
+                cached.to_array().map(f32::to_bits)
+            );
+            if fresh.w > 0.0 {
+                hits += 1;
+                let rgb = fresh.truncate();
+                shared += (last == Some(rgb)) as u32;
+                last = Some(rgb);
+            }
+        }
+    }
+    // Enough hits, and colours varying from ray to ray (so the gradients
+    // do: a cache that always returned its first cell would fail above).
+    assert!(hits > 400, "{hits} hits");
+    assert!(shared < hits / 2, "{shared} of {hits} colours repeat");
 }
 
 // -------------------------------------------------------------- iso with ESS

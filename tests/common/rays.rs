@@ -2,10 +2,11 @@
 //! renderers are built from), and random rays and directions.
 
 use glam::Vec3;
+use glam::Vec4;
 use raycaster::accel::SkipGrid;
 use raycaster::geometry::Ray;
 use raycaster::integrator::{
-    DvrState, FrameContext, Integrator, IsoState, MipState, RaySegment, Span,
+    DvrState, FrameContext, Integrator, IsoState, MipState, NormalCache, Phong, RaySegment, Span,
 };
 use raycaster::prelude::*;
 use raycaster::transfer::TfLut;
@@ -21,6 +22,8 @@ pub struct RayLab<'a> {
     every: SkipGrid,
     step: f32,
     iso: f32,
+    /// Phong shading in the frame context (none by default).
+    shading: Option<Phong>,
 }
 
 /// Work on one ray segment with the frame context of a concretely typed
@@ -59,6 +62,15 @@ impl<'a> RayLab<'a> {
             every: SkipGrid::all_occupied(scene.macrocells()),
             step,
             iso: iso.unwrap_or(0.0),
+            shading: None,
+        }
+    }
+
+    /// The same lab with Phong shading on.
+    pub fn shaded(self, phong: Phong) -> Self {
+        RayLab {
+            shading: Some(phong),
+            ..self
         }
     }
 
@@ -83,7 +95,7 @@ impl<'a> RayLab<'a> {
                     skip: if J::EVERY_CELL { &lab.every } else { &lab.skip },
                     ess: self.ess,
                     ert: None,
-                    shading: None,
+                    shading: lab.shading,
                     iso_value: lab.iso,
                     lights: &[],
                     shadows: false,
@@ -116,6 +128,23 @@ impl<'a> RayLab<'a> {
             }
         }
         self.run(ray, ess, Iso).unwrap_or((None, 0))
+    }
+
+    /// The iso colour of `ray` as [`Integrator::resolve`] gives it, and as
+    /// [`Integrator::resolve_in`] gives it with `cache` carried over from
+    /// the rays resolved before (as a tile loop does); `None` when the ray
+    /// misses the volume.
+    pub fn iso_colours(&self, ray: &Ray, cache: &mut NormalCache) -> Option<(Vec4, Vec4)> {
+        struct Iso<'c>(&'c mut NormalCache);
+        impl RayJob for Iso<'_> {
+            type Out = (Vec4, Vec4);
+            fn run<V: Volume>(self, ctx: &FrameContext<'_, V>, seg: &RaySegment) -> Self::Out {
+                let mut st = IsoState::default();
+                st.integrate(Span::whole(ctx, seg));
+                (st.resolve(ctx), st.resolve_in(ctx, self.0))
+            }
+        }
+        self.run(ray, true, Iso(cache))
     }
 
     pub fn dvr_state(&self, ray: &Ray, ess: bool) -> Option<(DvrState, u64)> {

@@ -16,6 +16,8 @@ pub struct AvgState {
 }
 
 impl Integrator for AvgState {
+    type Scratch = ();
+
     /// Adds the span's samples. Every kept sample counts, so nothing is
     /// skipped (clipped samples are outside `first..count`).
     #[inline]

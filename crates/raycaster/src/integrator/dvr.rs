@@ -32,6 +32,8 @@ pub struct DvrState {
 }
 
 impl Integrator for DvrState {
+    type Scratch = ();
+
     const CULLS_EMPTY_BRICKS: bool = true;
 
     const OCCUPANCY: Occupancy = Occupancy::Visible;

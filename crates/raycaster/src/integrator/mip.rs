@@ -83,6 +83,8 @@ impl<E: Extremum> Default for ProjectionState<E> {
 }
 
 impl<E: Extremum> Integrator for ProjectionState<E> {
+    type Scratch = ();
+
     /// Folds the span's samples into the extremum, skipping with ESS the
     /// macrocells whose value range cannot beat it.
     #[inline]

@@ -25,7 +25,7 @@ mod shading;
 pub use avg::AvgState;
 pub use dvr::DvrState;
 pub use fragment::Fragment;
-pub use iso::{CellCubic, IsoHit, IsoNormals, IsoState};
+pub use iso::{CellCubic, IsoHit, IsoNormals, IsoState, NormalCache};
 
 pub use mip::{Extremum, Max, Min, MinipState, MipState, ProjectionState};
 pub use none::NoSamples;
@@ -221,8 +221,25 @@ pub trait Integrator: Copy + Default + Send + Sync + std::fmt::Debug + 'static {
         false
     }
 
+    /// What a tile loop keeps from one pixel's [`Integrator::resolve_in`]
+    /// to the next (`()` for modes that keep nothing).
+    type Scratch: Default;
+
     /// Premultiplied colour and opacity of the finished ray.
     fn resolve<V: Volume>(&self, ctx: &FrameContext<'_, V>) -> Vec4;
+
+    /// [`Integrator::resolve`] for the pixels of one tile in turn, with
+    /// `scratch` kept between them (a tile's neighbouring rays share
+    /// work); the same result.
+    #[inline(always)]
+    fn resolve_in<V: Volume>(
+        &self,
+        ctx: &FrameContext<'_, V>,
+        scratch: &mut Self::Scratch,
+    ) -> Vec4 {
+        let _ = scratch;
+        self.resolve(ctx)
+    }
 
     /// What this (part of a) ray hands over for sort-last compositing: the
     /// record that the parts of a ray merge by (see [`Fragment`]).

@@ -15,6 +15,8 @@ use crate::volume::Volume;
 pub struct NoSamples;
 
 impl Integrator for NoSamples {
+    type Scratch = ();
+
     const SPLITS_RAYS: bool = false;
 
     fn integrate<V: Volume>(&mut self, _span: Span<'_, V>) -> u64 {

@@ -260,6 +260,7 @@ pub(crate) fn render_tile<V: Volume, I: Integrator>(
     let mut rgb = Vec::with_capacity(3 * rect.area() as usize);
     let mut samples = 0;
     let mut counts = RayCounts::default();
+    let mut scratch = I::Scratch::default();
     for j in rect.y0..rect.y1 {
         for i in rect.x0..rect.x1 {
             if job.culled(i, j) {
@@ -274,7 +275,7 @@ pub(crate) fn render_tile<V: Volume, I: Integrator>(
                 Some(seg) => {
                     let mut ray = I::default();
                     samples += ray.integrate(Span::whole(&job.ctx, &seg));
-                    let c = ray.resolve(&job.ctx);
+                    let c = ray.resolve_in(&job.ctx, &mut scratch);
                     counts.add(c);
                     film.composite(c)
                 }

@@ -30,7 +30,7 @@ use glam::{IVec3, UVec3, Vec3, Vec4};
 use super::{Fragment, FrameContext, Integrator, Occupancy, Span};
 use crate::accel::{CellClass, CellMasks, IsoCells, SkipGrid};
 use crate::geometry::Aabb;
-use crate::volume::{Corners, Volume};
+use crate::volume::{CornerGradients, Corners, Volume, corner_gradients, interpolate_gradient};
 
 /// How an isosurface's normal is found at a hit.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default, serde::Serialize, serde::Deserialize)]
@@ -77,7 +77,19 @@ pub struct IsoState {
     pub hit: Option<IsoHit>,
 }
 
+/// The central differences at the corners of the cell the last hit of a
+/// tile lay in ([`IsoState::resolve_in`]): a cell spans several pixels, so
+/// the next hit is often in it again, and its 32-value stencil need not be
+/// loaded twice.
+#[derive(Debug, Clone, Copy, Default)]
+pub struct NormalCache {
+    cell: Option<UVec3>,
+    gradients: CornerGradients,
+}
+
 impl Integrator for IsoState {
+    type Scratch = NormalCache;
+
     const SPLITS_RAYS: bool = false;
 
     const OCCUPANCY: Occupancy = Occupancy::IsoValue;
@@ -144,6 +156,10 @@ impl Integrator for IsoState {
     }
 
     fn resolve<V: Volume>(&self, ctx: &FrameContext<'_, V>) -> Vec4 {
+        self.resolve_in(ctx, &mut NormalCache::default())
+    }
+
+    fn resolve_in<V: Volume>(&self, ctx: &FrameContext<'_, V>, cache: &mut NormalCache) -> Vec4 {
         let Some(hit) = self.hit else {
             return Vec4::ZERO;
         };
@@ -151,7 +167,21 @@ impl Integrator for IsoState {
         let rgb = match &ctx.shading {
             Some(ph) => {
                 let g = match ctx.iso_normals {
-                    IsoNormals::Gradient => ctx.volume.gradient(hit.pos),
+                    // What `Volume::gradient` computes, with the corner
+                    // differences of the hit's cell kept for the next hit.
+                    IsoNormals::Gradient => {
+                        let at = ctx.volume.locate(hit.pos);
+                        if cache.cell != Some(at.cell) {
+                            let corners = ctx.volume.corners(at.cell);
+                            let wings = ctx.volume.wings(at.cell);
+                            *cache = NormalCache {
+                                cell: Some(at.cell),
+                                gradients: corner_gradients(&corners, &wings),
+                            };
+                        }
+                        let inv_two_spacing = 0.5 / ctx.volume.grid().spacing;
+                        interpolate_gradient(&cache.gradients, at.frac, inv_two_spacing)
+                    }
                     IsoNormals::Analytic => {
                         let corners = ctx.volume.corners(hit.cell);
                         trilinear_derivative(&corners, hit.pos - hit.cell.as_vec3())

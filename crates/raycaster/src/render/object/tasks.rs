@@ -159,9 +159,10 @@ impl<V: Volume, I: Integrator> Shared<'_, V, I> {
         }
         let mut rgb = Vec::with_capacity(3 * area);
         let mut counts = RayCounts::default();
+        let mut scratch = I::Scratch::default();
         for (seg, state) in buf.segs.iter().zip(&buf.states) {
             if seg.is_some() {
-                let c = state.resolve(&self.job.ctx);
+                let c = state.resolve_in(&self.job.ctx, &mut scratch);
                 counts.add(c);
                 rgb.extend_from_slice(&self.film.composite(c));
             } else {
