@@ -8,7 +8,7 @@ use common::rays::{RayLab, random_ray};
 use common::scenes::{opts, render, tf_points, u8_volume};
 use glam::{UVec3, Vec3};
 use raycaster::geometry::Ray;
-use raycaster::integrator::{NormalCache, Phong};
+use raycaster::integrator::{Phong, ShadingCache};
 use raycaster::prelude::*;
 
 /// A sphere as a distance field: value 100 + 10·(R − |p − c|) in world
@@ -228,7 +228,7 @@ fn the_normal_cache_changes_no_colour() {
         &[(0.0, [0.6, 0.5, 0.4], 1.0), (300.0, [0.6, 0.5, 0.4], 1.0)],
     );
     let lab = RayLab::iso(&scene, &tf, 0.5, 100.0).shaded(Phong::default());
-    let mut cache = NormalCache::default();
+    let mut cache = ShadingCache::default();
     let (mut hits, mut shared) = (0, 0);
     let eye = c + Vec3::new(3.0, 5.0, 60.0);
     let mut last = None;

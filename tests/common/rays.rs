@@ -6,7 +6,7 @@ use glam::Vec4;
 use raycaster::accel::SkipGrid;
 use raycaster::geometry::Ray;
 use raycaster::integrator::{
-    DvrState, FrameContext, Integrator, IsoState, MipState, NormalCache, Phong, RaySegment, Span,
+    DvrState, FrameContext, Integrator, IsoState, MipState, Phong, RaySegment, ShadingCache, Span,
 };
 use raycaster::prelude::*;
 use raycaster::transfer::TfLut;
@@ -134,8 +134,8 @@ impl<'a> RayLab<'a> {
     /// [`Integrator::resolve_in`] gives it with `cache` carried over from
     /// the rays resolved before (as a tile loop does); `None` when the ray
     /// misses the volume.
-    pub fn iso_colours(&self, ray: &Ray, cache: &mut NormalCache) -> Option<(Vec4, Vec4)> {
-        struct Iso<'c>(&'c mut NormalCache);
+    pub fn iso_colours(&self, ray: &Ray, cache: &mut ShadingCache) -> Option<(Vec4, Vec4)> {
+        struct Iso<'c>(&'c mut ShadingCache);
         impl RayJob for Iso<'_> {
             type Out = (Vec4, Vec4);
             fn run<V: Volume>(self, ctx: &FrameContext<'_, V>, seg: &RaySegment) -> Self::Out {

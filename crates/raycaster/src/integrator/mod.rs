@@ -25,7 +25,7 @@ mod shading;
 pub use avg::AvgState;
 pub use dvr::DvrState;
 pub use fragment::Fragment;
-pub use iso::{CellCubic, IsoHit, IsoNormals, IsoState, NormalCache};
+pub use iso::{CellCubic, IsoHit, IsoNormals, IsoState, ShadingCache};
 
 pub use mip::{Extremum, Max, Min, MinipState, MipState, ProjectionState};
 pub use none::NoSamples;

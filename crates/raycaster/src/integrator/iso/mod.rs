@@ -77,18 +77,20 @@ pub struct IsoState {
     pub hit: Option<IsoHit>,
 }
 
-/// The central differences at the corners of the cell the last hit of a
-/// tile lay in ([`IsoState::resolve_in`]): a cell spans several pixels, so
-/// the next hit is often in it again, and its 32-value stencil need not be
-/// loaded twice.
+/// What the hits of one tile share ([`IsoState::resolve_in`]): the TF's
+/// colour at the iso value, and the central differences at the corners of
+/// the cell the last hit lay in (a cell spans several pixels, so the next
+/// hit is often in it again, and its 32-value stencil need not be loaded
+/// twice).
 #[derive(Debug, Clone, Copy, Default)]
-pub struct NormalCache {
+pub struct ShadingCache {
+    colour: Option<Vec3>,
     cell: Option<UVec3>,
     gradients: CornerGradients,
 }
 
 impl Integrator for IsoState {
-    type Scratch = NormalCache;
+    type Scratch = ShadingCache;
 
     const SPLITS_RAYS: bool = false;
 
@@ -156,14 +158,16 @@ impl Integrator for IsoState {
     }
 
     fn resolve<V: Volume>(&self, ctx: &FrameContext<'_, V>) -> Vec4 {
-        self.resolve_in(ctx, &mut NormalCache::default())
+        self.resolve_in(ctx, &mut ShadingCache::default())
     }
 
-    fn resolve_in<V: Volume>(&self, ctx: &FrameContext<'_, V>, cache: &mut NormalCache) -> Vec4 {
+    fn resolve_in<V: Volume>(&self, ctx: &FrameContext<'_, V>, cache: &mut ShadingCache) -> Vec4 {
         let Some(hit) = self.hit else {
             return Vec4::ZERO;
         };
-        let c = ctx.tf.evaluate(ctx.iso_value).truncate();
+        let c = *cache
+            .colour
+            .get_or_insert_with(|| ctx.tf.evaluate(ctx.iso_value).truncate());
         let rgb = match &ctx.shading {
             Some(ph) => {
                 let g = match ctx.iso_normals {
@@ -174,10 +178,8 @@ impl Integrator for IsoState {
                         if cache.cell != Some(at.cell) {
                             let corners = ctx.volume.corners(at.cell);
                             let wings = ctx.volume.wings(at.cell);
-                            *cache = NormalCache {
-                                cell: Some(at.cell),
-                                gradients: corner_gradients(&corners, &wings),
-                            };
+                            cache.cell = Some(at.cell);
+                            cache.gradients = corner_gradients(&corners, &wings);
                         }
                         let inv_two_spacing = 0.5 / ctx.volume.grid().spacing;
                         interpolate_gradient(&cache.gradients, at.frac, inv_two_spacing)
