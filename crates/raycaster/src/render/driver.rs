@@ -37,8 +37,9 @@ pub struct FrameJob<'a, V: Volume> {
 
 impl<V: Volume> FrameJob<'_, V> {
     /// Whether the frame's proxy depths say the ray of pixel `(i, j)`
-    /// meets nothing (exact iso): it shows the background whatever the
-    /// integrator, and only [`FrameJob::enters`] is left to ask.
+    /// meets no cell that can hold the surface (only exact iso frames have
+    /// them): its search would find nothing, so it shows the background,
+    /// and only [`FrameJob::enters`] is left to ask.
     #[inline(always)]
     pub fn culled(&self, i: u32, j: u32) -> bool {
         self.plan
@@ -264,8 +265,8 @@ pub(crate) fn render_tile<V: Volume, I: Integrator>(
     for j in rect.y0..rect.y1 {
         for i in rect.x0..rect.x1 {
             if job.culled(i, j) {
-                // As the integrator would end with nothing: the background,
-                // counted as entering when the ray meets the box.
+                // What the iso search of an empty segment ends with: the
+                // background, counted as entering when the ray meets the box.
                 counts.entered += job.enters(i, j) as u64;
                 rgb.extend_from_slice(&film.background_rgb());
                 continue;
