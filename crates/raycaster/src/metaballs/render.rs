@@ -302,6 +302,13 @@ fn render_tile(job: &TileJob<'_>, (tx, ty): (u32, u32)) -> (Vec<u8>, u64) {
     let mut shadow_scratch = ShadowScratch::default();
     let mut tile = Vec::new();
     ray::tile_cands(job.params.balls, cands, &mut tile);
+    ray::tighten_tile(
+        job.frame,
+        &rect,
+        &mut tile,
+        &mut Vec::new(),
+        &mut Vec::new(),
+    );
     let mut rgb = Vec::with_capacity(3 * rect.area() as usize);
     let mut met = 0;
     let mut counts = RayCounts::default();
