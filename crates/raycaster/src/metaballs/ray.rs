@@ -3,7 +3,8 @@
 //!
 //! The ray takes its tile's candidates in `t_lo` order, as they can
 //! matter: a candidate is tested (ray against sphere) only once the sweep
-//! has reached its `t_lo`. Each ball the ray meets gives an entry and an
+//! has reached its `t_lo`, which [`tighten_tile`] raises, per tile, from
+//! the frame's bound to the earliest entry of any of the tile's rays. Each ball the ray meets gives an entry and an
 //! exit event, queued in a binary heap (the exit when the ball is entered:
 //! it takes the entry's place at the heap's top, one sift); between
 //! consecutive events the set of active balls is fixed, so `F − T` is a
@@ -171,11 +172,13 @@ const TIGHTEN_MARGIN: f64 = 1e-6;
 /// `h` from every ray in it, and a ray at distance `h` from `c` enters the
 /// ball (radius `R`, `D = |c − eye|`) at `√(D² − h²) − √(R² − h²)`, which
 /// grows with `h`. Perspective only (orthographic lists are left as they
-/// are), and balls holding the eye keep their bound.
+/// are), and balls holding the eye keep their bound. Only the candidates
+/// within `depth` of the list's first are tightened.
 pub fn tighten_tile(
     frame: &CameraFrame,
     rect: &PixelRect,
     cands: &mut Vec<Cand>,
+    depth: f64,
     keys: &mut Vec<u128>,
     out: &mut Vec<Cand>,
 ) {
@@ -196,17 +199,24 @@ pub fn tighten_tile(
         let n = corners[k].cross(corners[(k + 1) % 4]);
         let len = n.length();
         // A tile one pixel wide or tall has no pyramid.
-        if !(len > 1e-12) {
+        if len.is_nan() || len <= 1e-12 {
             return;
         }
         let n = n / len;
         let inside = corners[(k + 2) % 4] + corners[(k + 3) % 4];
         *plane = if n.dot(inside) < 0.0 { -n } else { n };
     }
+    // Only the candidates up to `cut` (by the frame's bound) are tightened
+    // and sorted again, their bounds capped at `cut`: the rest keep theirs
+    // (all above `cut`) and their place after them, so the list stays in
+    // order. A tile's rays mostly stop long before the end of its list, and
+    // the sort is most of the cost.
+    let cut = cands.first().map_or(0.0, |c| c.t_lo) + depth;
+    let prefix = cands.partition_point(|c| c.t_lo <= cut);
     // The candidates kept, as integer keys ordered like (t_lo, ball),
     // with their place in `cands` in the low bits.
     keys.clear();
-    for (i, c) in cands.iter_mut().enumerate() {
+    for (i, c) in cands[..prefix].iter_mut().enumerate() {
         let oc = c.center - eye;
         let d2 = oc.length_squared();
         if d2 > c.r2 {
@@ -219,7 +229,7 @@ pub fn tighten_tile(
                 }
                 let r = c.r2.sqrt();
                 let entry = (d2 - h2).sqrt() - (c.r2 - h2).sqrt() - TIGHTEN_MARGIN * (dist + r);
-                c.t_lo = c.t_lo.max(entry);
+                c.t_lo = c.t_lo.max(entry).min(cut);
             }
         }
         keys.push(((order_bits(c.t_lo) as u128) << 64) | ((c.ball as u128) << 32) | i as u128);
@@ -227,6 +237,7 @@ pub fn tighten_tile(
     keys.sort_unstable();
     out.clear();
     out.extend(keys.iter().map(|&k| cands[k as u32 as usize]));
+    out.extend_from_slice(&cands[prefix..]);
     std::mem::swap(cands, out);
 }
 
@@ -698,7 +709,8 @@ mod tests {
                     let rect = lists.rect(tx, ty);
                     tile_cands(&lists.balls, lists.candidates(tx, ty), &mut plain);
                     tight.clone_from(&plain);
-                    tighten_tile(&f, &rect, &mut tight, &mut Vec::new(), &mut Vec::new());
+                    // Not all of the list: 2 radii past its first.
+                    tighten_tile(&f, &rect, &mut tight, 1.8, &mut Vec::new(), &mut Vec::new());
                     dropped += plain.len() - tight.len();
                     assert!(
                         tight
