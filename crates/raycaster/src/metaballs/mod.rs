@@ -13,7 +13,7 @@
 //! | `balls.rs` | [`Balls`]: from a volume ([`Extraction`]) or a `.csv`/`.xyz` file, with an optional cap |
 //! | `kernel.rs` | [`Kernel`]: `K` as a polynomial in `a²`, composed with a ray's quadratic `a²(t)` |
 //! | `tiles.rs` | per-tile candidate lists in two passes (count, fill) from each ball's projected bounding square, sorted by the frame's entry bound `t_lo` |
-//! | `ray.rs` | one ray: entry/exit events, the running polynomial of `F − T` per interval, its first root; shading |
+//! | `ray.rs` | a tile's list tightened to the pyramid of its rays (`tighten_tile`); one ray: entry/exit events, the running polynomial of `F − T` per interval, its first root; shading |
 //! | `poly.rs` | polynomials of degree ≤ 6: Taylor shift, Bernstein coefficients, first root |
 //! | `shadow.rs` | a uniform grid of all balls, walked by shadow rays towards each light |
 //! | `render.rs` | [`MetaballRenderer`]: the lists, the tile loop, serial or on a pool |

@@ -3,7 +3,8 @@
 //!
 //! The ray takes its tile's candidates in `t_lo` order, as they can
 //! matter: a candidate is tested (ray against sphere) only once the sweep
-//! has reached its `t_lo`. Each ball the ray meets gives an entry and an
+//! has reached its `t_lo`, which [`tighten_tile`] raises, per tile, from
+//! the frame's bound to the earliest entry of any of the tile's rays. Each ball the ray meets gives an entry and an
 //! exit event, queued in a binary heap (the exit when the ball is entered:
 //! it takes the entry's place at the heap's top, one sift); between
 //! consecutive events the set of active balls is fixed, so `F − T` is a
@@ -29,23 +30,32 @@ use glam::{DVec3, Vec3, Vec4};
 use super::kernel::{Kernel, MAX_TERMS, Poly};
 use super::poly;
 use super::tiles::FrameBall;
+use crate::camera::{CameraFrame, PixelRect, Projection};
 use crate::geometry::Ray;
 use crate::integrator::Phong;
 
 /// A ray's entry into or exit from a ball, as one integer ordered like
-/// `(t, exit before entry, slot)`: `t >= 0`, whose bits order as the
-/// numbers do, in the high 64 bits; below them `!exit` and the slot (an
-/// index into the ray's `met` list). Popped smallest first.
+/// `(t, exit before entry, ball)`: `t >= 0`, whose bits order as the
+/// numbers do, in the high 64 bits; below them `!exit`, the ball's index
+/// and the slot (an index into the ray's `met` list, below 2³¹). Popped
+/// smallest first. Ties in `t` go by the ball's index, not by when the
+/// ray met the ball, so the order of events does not depend on the order
+/// in which a tile's candidates are taken.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, PartialOrd, Ord)]
 struct Event(u128);
 
 impl Event {
     #[inline]
-    fn new(t: f64, slot: u32, exit: bool) -> Self {
-        debug_assert!(t >= 0.0);
+    fn new(t: f64, ball: u32, slot: u32, exit: bool) -> Self {
+        debug_assert!(t >= 0.0 && slot < 1 << 31);
         // +0.0 for −0.0, so that the bits order as the numbers.
         let t = t + 0.0;
-        Event(((t.to_bits() as u128) << 64) | ((!exit as u128) << 32) | slot as u128)
+        Event(
+            ((t.to_bits() as u128) << 64)
+                | ((!exit as u128) << 63)
+                | ((ball as u128) << 31)
+                | slot as u128,
+        )
     }
 
     #[inline]
@@ -55,12 +65,17 @@ impl Event {
 
     #[inline]
     fn slot(self) -> u32 {
-        self.0 as u32
+        self.0 as u32 & ((1 << 31) - 1)
+    }
+
+    #[inline]
+    fn ball(self) -> u32 {
+        (self.0 >> 31) as u32
     }
 
     #[inline]
     fn exit(self) -> bool {
-        (self.0 >> 32) & 1 == 0
+        (self.0 >> 63) & 1 == 0
     }
 }
 
@@ -88,6 +103,9 @@ struct Met {
 pub struct Scratch {
     heap: BinaryHeap<Reverse<Event>>,
     met: Vec<Met>,
+    /// After a hit: the balls active there (entered, not yet left), by
+    /// index, for [`shade`].
+    active: Vec<u32>,
     /// The candidates for [`first_hit`] called without a tile's.
     cands: Vec<Cand>,
 }
@@ -130,6 +148,104 @@ pub fn tile_cands(balls: &[FrameBall], candidates: &[u32], out: &mut Vec<Cand>) 
         let fb = &balls[k as usize];
         Cand::new(fb, fb.t_lo, k)
     }));
+}
+
+/// Rounding allowance of [`tighten_tile`], relative to the distance of a
+/// ball: the rays' directions are rounded to `f32` (about 1e-7), and a
+/// chord's entry, near a grazing ray, moves by up to the square root of
+/// the rounding of `h²` (about 3e-8 of the distance).
+const TIGHTEN_MARGIN: f64 = 1e-6;
+
+/// Tightens a tile's candidates (from [`tile_cands`]) for the rays of its
+/// pixels `rect` under `frame`: a ball no ray of the tile meets is
+/// dropped, and each other's `t_lo` (the frame's bound, the eye's distance
+/// less the radius: right only for a ray through the centre) is raised to
+/// the earliest entry of any ray of the tile; then the list is sorted
+/// again by `t_lo` (ties by index). With balls far wider on screen than a
+/// tile, most of a tile's rays pass far from most centres, and a ray tests
+/// a candidate only once its sweep reaches `t_lo`: fewer tests, and fewer
+/// balls met long before the ray enters them. The events come out in the
+/// same order as without it (ties go by index), so the hits are the same.
+///
+/// The tile's rays lie in the pyramid spanned by its corner pixels' rays;
+/// a centre `c` at distance `h` outside one of its side planes is at least
+/// `h` from every ray in it, and a ray at distance `h` from `c` enters the
+/// ball (radius `R`, `D = |c − eye|`) at `√(D² − h²) − √(R² − h²)`, which
+/// grows with `h`. Perspective only (orthographic lists are left as they
+/// are), and balls holding the eye keep their bound. Only the candidates
+/// within `depth` of the list's first are tightened.
+pub fn tighten_tile(
+    frame: &CameraFrame,
+    rect: &PixelRect,
+    cands: &mut Vec<Cand>,
+    depth: f64,
+    keys: &mut Vec<u128>,
+    out: &mut Vec<Cand>,
+) {
+    if frame.projection() != Projection::Perspective || rect.x1 <= rect.x0 || rect.y1 <= rect.y0 {
+        return;
+    }
+    let eye = frame.position().as_dvec3();
+    let corners = [
+        (rect.x0, rect.y0),
+        (rect.x1 - 1, rect.y0),
+        (rect.x1 - 1, rect.y1 - 1),
+        (rect.x0, rect.y1 - 1),
+    ]
+    .map(|(i, j)| frame.ray(i, j).dir.as_dvec3());
+    // The pyramid's side planes through the eye, unit normals inwards.
+    let mut planes = [DVec3::ZERO; 4];
+    for (k, plane) in planes.iter_mut().enumerate() {
+        let n = corners[k].cross(corners[(k + 1) % 4]);
+        let len = n.length();
+        // A tile one pixel wide or tall has no pyramid.
+        if len.is_nan() || len <= 1e-12 {
+            return;
+        }
+        let n = n / len;
+        let inside = corners[(k + 2) % 4] + corners[(k + 3) % 4];
+        *plane = if n.dot(inside) < 0.0 { -n } else { n };
+    }
+    // Only the candidates up to `cut` (by the frame's bound) are tightened
+    // and sorted again, their bounds capped at `cut`: the rest keep theirs
+    // (all above `cut`) and their place after them, so the list stays in
+    // order. A tile's rays mostly stop long before the end of its list, and
+    // the sort is most of the cost.
+    let cut = cands.first().map_or(0.0, |c| c.t_lo) + depth;
+    let prefix = cands.partition_point(|c| c.t_lo <= cut);
+    // The candidates kept, as integer keys ordered like (t_lo, ball),
+    // with their place in `cands` in the low bits.
+    keys.clear();
+    for (i, c) in cands[..prefix].iter_mut().enumerate() {
+        let oc = c.center - eye;
+        let d2 = oc.length_squared();
+        if d2 > c.r2 {
+            let dist = d2.sqrt();
+            let h = planes.iter().fold(0.0f64, |h, n| h.max(-n.dot(oc))) - TIGHTEN_MARGIN * dist;
+            if h > 0.0 {
+                let h2 = h * h;
+                if h2 >= c.r2 {
+                    continue;
+                }
+                let r = c.r2.sqrt();
+                let entry = (d2 - h2).sqrt() - (c.r2 - h2).sqrt() - TIGHTEN_MARGIN * (dist + r);
+                c.t_lo = c.t_lo.max(entry).min(cut);
+            }
+        }
+        keys.push(((order_bits(c.t_lo) as u128) << 64) | ((c.ball as u128) << 32) | i as u128);
+    }
+    keys.sort_unstable();
+    out.clear();
+    out.extend(keys.iter().map(|&k| cands[k as u32 as usize]));
+    out.extend_from_slice(&cands[prefix..]);
+    std::mem::swap(cands, out);
+}
+
+/// The bits of `x` as an integer ordered like [`f64::total_cmp`].
+#[inline]
+fn order_bits(x: f64) -> u64 {
+    let b = x.to_bits();
+    if b >> 63 == 1 { !b } else { b | 1 << 63 }
 }
 
 /// Where a ray's line `o + t·d` (unit `d`) passes through a ball.
@@ -246,6 +362,7 @@ fn first_hit_n<const N: usize, const BOUND: bool>(
 ) -> RayResult {
     s.heap.clear();
     s.met.clear();
+    s.active.clear();
     let o = ray.origin.as_dvec3();
     let d = ray.dir.as_dvec3();
     let kernel = p.kernel;
@@ -291,7 +408,8 @@ fn first_hit_n<const N: usize, const BOUND: bool>(
                 kp: [0.0; MAX_TERMS],
             });
             // The exit is queued when the ball is entered.
-            s.heap.push(Reverse(Event::new(t0.max(t_cur), slot, false)));
+            s.heap
+                .push(Reverse(Event::new(t0.max(t_cur), fb.ball, slot, false)));
         }
         // The next event stays in the heap until it is done with: an entry
         // gives its place to the ball's exit (one sift instead of a pop and
@@ -318,6 +436,10 @@ fn first_hit_n<const N: usize, const BOUND: bool>(
                 q.iter_mut().for_each(|c| *c = -*c);
             }
             if let Some(x) = poly::first_root_n::<N>(&q, len, p.tol) {
+                // The active balls are those whose exit is queued.
+                s.active
+                    .extend(s.heap.iter().filter(|e| e.0.exit()).map(|e| e.0.ball()));
+                s.active.sort_unstable();
                 return RayResult {
                     t: Some(t_cur + x * sc),
                     met: s.met.len() as u32,
@@ -365,7 +487,7 @@ fn first_hit_n<const N: usize, const BOUND: bool>(
             }
             m.kp = kp;
             m.epoch = epoch;
-            let exit = Reverse(Event::new(m.t1, slot, true));
+            let exit = Reverse(Event::new(m.t1, m.ball, slot, true));
             if let Some(mut top) = s.heap.peek_mut() {
                 *top = exit;
             }
@@ -403,9 +525,9 @@ pub fn shade(
     let mut grad = DVec3::ZERO;
     let mut color = Vec3::ZERO;
     let mut weight = 0.0f64;
-    // Every ball active at the hit was met before it.
-    for m in &s.met {
-        let fb = &p.balls[m.ball as usize];
+    // The balls active at the hit, by index (the others add nothing there).
+    for &k in &s.active {
+        let fb = &p.balls[k as usize];
         let v = x - fb.center;
         let s = v.length_squared() * fb.inv_r2;
         if s >= 1.0 {
@@ -554,6 +676,80 @@ mod tests {
                 }
             }
             assert!(checked > 10_000, "{checked}");
+        }
+    }
+
+    #[test]
+    fn tightened_tile_lists_keep_every_ball_met_and_change_no_hit() {
+        let mut rng = fastrand::Rng::with_seed(31);
+        for (n, pos) in [
+            (80, Vec3::new(0.5, 1.0, 6.0)),
+            (300, Vec3::new(-4.0, 2.0, 3.0)),
+            // The eye inside the balls' box: some balls hold it.
+            (60, Vec3::new(0.2, 0.1, 0.3)),
+        ] {
+            let balls = random_balls(&mut rng, n, 3.0);
+            let cam = Camera::look_at(pos, Vec3::ZERO, 45, 38);
+            let f = cam.frame().unwrap();
+            let lists = TileLists::build(&balls, &f, 45, 38, 16, |_| Vec3::ONE).unwrap();
+            let p = RayParams {
+                balls: &lists.balls,
+                kernel: Kernel::Wyvill,
+                threshold: 0.5,
+                scale: 0.9,
+                tol: 1e-4 * 0.3 / 0.9,
+                shading: None,
+                lights: &[],
+            };
+            let (mut s, mut hits) = (Scratch::default(), 0);
+            let (mut plain, mut tight) = (Vec::new(), Vec::new());
+            let mut dropped = 0;
+            for ty in 0..lists.rows {
+                for tx in 0..lists.cols {
+                    let rect = lists.rect(tx, ty);
+                    tile_cands(&lists.balls, lists.candidates(tx, ty), &mut plain);
+                    tight.clone_from(&plain);
+                    // Not all of the list: 2 radii past its first.
+                    tighten_tile(&f, &rect, &mut tight, 1.8, &mut Vec::new(), &mut Vec::new());
+                    dropped += plain.len() - tight.len();
+                    assert!(
+                        tight
+                            .windows(2)
+                            .all(|w| (w[0].t_lo, w[0].ball) <= (w[1].t_lo, w[1].ball))
+                    );
+                    for j in rect.y0..rect.y1 {
+                        for i in rect.x0..rect.x1 {
+                            let ray = f.ray(i, j);
+                            let (o, d) = (ray.origin.as_dvec3(), ray.dir.as_dvec3());
+                            for c in &plain {
+                                let Some(ch) = chord(c.center, c.r2, o, d) else {
+                                    continue;
+                                };
+                                if ch.t1 <= 0.0 {
+                                    continue;
+                                }
+                                let kept = tight.iter().find(|k| k.ball == c.ball);
+                                let kept = kept
+                                    .unwrap_or_else(|| panic!("{i},{j}: ball {} dropped", c.ball));
+                                assert!(
+                                    ch.t0 >= kept.t_lo || ch.t0 < 0.0,
+                                    "{i},{j}: {} < {}",
+                                    ch.t0,
+                                    kept.t_lo
+                                );
+                            }
+                            let a = first_hit_tile(&p, &ray, &plain, &mut s);
+                            let b = first_hit_tile(&p, &ray, &tight, &mut s);
+                            assert_eq!(a.t.map(f64::to_bits), b.t.map(f64::to_bits), "{i},{j}");
+                            hits += a.t.is_some() as u32;
+                        }
+                    }
+                }
+            }
+            assert!(
+                hits > 100 && dropped > 0,
+                "{n}: {hits} hits, {dropped} dropped"
+            );
         }
     }
 

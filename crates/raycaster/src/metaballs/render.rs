@@ -279,6 +279,12 @@ pub const ROOT_TOLERANCE: f64 = 1e-4;
 /// find the surface they leave.
 const SHADOW_OFFSET: f64 = 2e-3;
 
+/// How deep into a tile's candidate list (from its first `t_lo`, in
+/// largest radii) [`ray::tighten_tile`] tightens it: on the benchmark
+/// lattices a ray hits within a radius or two of its first ball (4 radii
+/// measured 1 % slower at 8000 balls, 1 radius 3 % slower).
+const TIGHTEN_DEPTH: f64 = 2.0;
+
 /// What the tile loop reads.
 struct TileJob<'a> {
     frame: &'a CameraFrame,
@@ -302,6 +308,14 @@ fn render_tile(job: &TileJob<'_>, (tx, ty): (u32, u32)) -> (Vec<u8>, u64) {
     let mut shadow_scratch = ShadowScratch::default();
     let mut tile = Vec::new();
     ray::tile_cands(job.params.balls, cands, &mut tile);
+    ray::tighten_tile(
+        job.frame,
+        &rect,
+        &mut tile,
+        TIGHTEN_DEPTH * job.params.scale,
+        &mut Vec::new(),
+        &mut Vec::new(),
+    );
     let mut rgb = Vec::with_capacity(3 * rect.area() as usize);
     let mut met = 0;
     let mut counts = RayCounts::default();
