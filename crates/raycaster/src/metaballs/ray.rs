@@ -4,9 +4,10 @@
 //! The ray takes its tile's candidates in `t_lo` order, as they can
 //! matter: a candidate is tested (ray against sphere) only once the sweep
 //! has reached its `t_lo`, which [`tighten_tile`] raises, per tile, from
-//! the frame's bound to the earliest entry of any of the tile's rays. Each ball the ray meets gives an entry and an
-//! exit event, queued in a binary heap (the exit when the ball is entered:
-//! it takes the entry's place at the heap's top, one sift); between
+//! the frame's bound to the earliest entry of any of the tile's rays.
+//! Each ball the ray meets gives an entry and an exit event, queued in a
+//! binary heap (the exit when the ball is entered: it takes the entry's
+//! place at the heap's top, one sift); between
 //! consecutive events the set of active balls is fixed, so `F − T` is a
 //! polynomial in `t` there (degree 6 for Wyvill, 4 for Murakami).
 //!
