@@ -175,14 +175,7 @@ const TIGHTEN_MARGIN: f64 = 1e-6;
 /// grows with `h`. Perspective only (orthographic lists are left as they
 /// are), and balls holding the eye keep their bound. Only the candidates
 /// within `depth` of the list's first are tightened.
-pub fn tighten_tile(
-    frame: &CameraFrame,
-    rect: &PixelRect,
-    cands: &mut Vec<Cand>,
-    depth: f64,
-    keys: &mut Vec<u128>,
-    out: &mut Vec<Cand>,
-) {
+pub fn tighten_tile(frame: &CameraFrame, rect: &PixelRect, cands: &mut Vec<Cand>, depth: f64) {
     if frame.projection() != Projection::Perspective || rect.x1 <= rect.x0 || rect.y1 <= rect.y0 {
         return;
     }
@@ -216,7 +209,7 @@ pub fn tighten_tile(
     let prefix = cands.partition_point(|c| c.t_lo <= cut);
     // The candidates kept, as integer keys ordered like (t_lo, ball),
     // with their place in `cands` in the low bits.
-    keys.clear();
+    let mut keys = Vec::with_capacity(prefix);
     for (i, c) in cands[..prefix].iter_mut().enumerate() {
         let oc = c.center - eye;
         let d2 = oc.length_squared();
@@ -236,10 +229,10 @@ pub fn tighten_tile(
         keys.push(((order_bits(c.t_lo) as u128) << 64) | ((c.ball as u128) << 32) | i as u128);
     }
     keys.sort_unstable();
-    out.clear();
+    let mut out = Vec::with_capacity(keys.len() + cands.len() - prefix);
     out.extend(keys.iter().map(|&k| cands[k as u32 as usize]));
     out.extend_from_slice(&cands[prefix..]);
-    std::mem::swap(cands, out);
+    *cands = out;
 }
 
 /// The bits of `x` as an integer ordered like [`f64::total_cmp`].
@@ -711,7 +704,7 @@ mod tests {
                     tile_cands(&lists.balls, lists.candidates(tx, ty), &mut plain);
                     tight.clone_from(&plain);
                     // Not all of the list: 2 radii past its first.
-                    tighten_tile(&f, &rect, &mut tight, 1.8, &mut Vec::new(), &mut Vec::new());
+                    tighten_tile(&f, &rect, &mut tight, 1.8);
                     dropped += plain.len() - tight.len();
                     assert!(
                         tight

@@ -313,8 +313,6 @@ fn render_tile(job: &TileJob<'_>, (tx, ty): (u32, u32)) -> (Vec<u8>, u64) {
         &rect,
         &mut tile,
         TIGHTEN_DEPTH * job.params.scale,
-        &mut Vec::new(),
-        &mut Vec::new(),
     );
     let mut rgb = Vec::with_capacity(3 * rect.area() as usize);
     let mut met = 0;

@@ -36,26 +36,6 @@ pub struct FrameJob<'a, V: Volume> {
 }
 
 impl<V: Volume> FrameJob<'_, V> {
-    /// Whether the frame's proxy depths say the ray of pixel `(i, j)`
-    /// meets no cell that can hold the surface (only exact iso frames have
-    /// them): its search would find nothing, so it shows the background,
-    /// and only [`FrameJob::enters`] is left to ask.
-    #[inline(always)]
-    pub fn culled(&self, i: u32, j: u32) -> bool {
-        self.plan
-            .proxy
-            .as_ref()
-            .is_some_and(|p| p.at(i, j) == f32::INFINITY)
-    }
-
-    /// Whether the ray of pixel `(i, j)` meets the volume's box (what
-    /// [`FrameJob::segment`] tests first).
-    #[inline(always)]
-    pub fn enters(&self, i: u32, j: u32) -> bool {
-        let ray = self.plan.camera.ray(i, j);
-        self.ctx.volume.grid().bounds().intersect(&ray).is_some()
-    }
-
     /// The ray of pixel `(i, j)` clipped to the volume, `None` when it
     /// misses: jittered and clipped as the frame says, the one place every
     /// schedule gets its rays from. With the frame's proxy depths (exact
@@ -64,24 +44,49 @@ impl<V: Volume> FrameJob<'_, V> {
     /// sample (it still counts as entering the volume).
     #[inline]
     pub fn segment(&self, i: u32, j: u32) -> Option<RaySegment> {
+        match self.pixel(i, j) {
+            PixelRay::Misses => None,
+            PixelRay::Culled(seg) | PixelRay::Searched(seg) => Some(seg),
+        }
+    }
+
+    /// [`FrameJob::segment`], telling apart a ray the proxy depths cull.
+    #[inline(always)]
+    pub fn pixel(&self, i: u32, j: u32) -> PixelRay {
         let grid = self.ctx.volume.grid();
         let ray = self.plan.camera.ray(i, j);
         let start = self.plan.proxy.as_ref().map(|p| p.at(i, j));
         if start == Some(f32::INFINITY) {
-            return RaySegment::entering(grid, &ray, self.plan.step);
+            return RaySegment::entering(grid, &ray, self.plan.step)
+                .map_or(PixelRay::Misses, PixelRay::Culled);
         }
-        let mut seg = RaySegment::with(
+        let Some(mut seg) = RaySegment::with(
             grid,
             &ray,
             self.plan.step,
             self.plan.jitter.map_or(0.0, |seed| jitter(i, j, seed)),
             self.plan.clip.as_ref(),
-        )?;
+        ) else {
+            return PixelRay::Misses;
+        };
         if let Some(t) = start {
             seg.t_in = seg.t_in.max(t);
         }
-        Some(seg)
+        PixelRay::Searched(seg)
     }
+}
+
+/// What [`FrameJob::pixel`] found for a pixel's ray.
+#[derive(Debug, Clone, Copy)]
+pub enum PixelRay {
+    /// It misses the volume's box.
+    Misses,
+    /// It enters the box, but the frame's proxy depths say it meets no
+    /// cell that can hold the surface (only exact iso frames have them):
+    /// its segment keeps no sample, and its pixel shows the background.
+    Culled(RaySegment),
+    /// The part of it to integrate.
+    Searched(RaySegment),
 }
 
 /// How a renderer schedules the rays of a frame: the one part in which the
@@ -264,16 +269,15 @@ pub(crate) fn render_tile<V: Volume, I: Integrator>(
     let mut scratch = I::Scratch::default();
     for j in rect.y0..rect.y1 {
         for i in rect.x0..rect.x1 {
-            if job.culled(i, j) {
-                // What the iso search of an empty segment ends with: the
-                // background, counted as entering when the ray meets the box.
-                counts.entered += job.enters(i, j) as u64;
-                rgb.extend_from_slice(&film.background_rgb());
-                continue;
-            }
-            let px = match job.segment(i, j) {
-                None => film.background_rgb(),
-                Some(seg) => {
+            let px = match job.pixel(i, j) {
+                PixelRay::Misses => film.background_rgb(),
+                // What the iso search of an empty segment ends with, without
+                // integrating and resolving nothing.
+                PixelRay::Culled(_) => {
+                    counts.entered += 1;
+                    film.background_rgb()
+                }
+                PixelRay::Searched(seg) => {
                     let mut ray = I::default();
                     samples += ray.integrate(Span::whole(&job.ctx, &seg));
                     let c = ray.resolve_in(&job.ctx, &mut scratch);

@@ -88,9 +88,31 @@ pub trait Volume: Send + Sync {
     /// faces (SPEC §8).
     #[inline(always)]
     fn gradient(&self, p: Vec3) -> Vec3 {
-        let c = self.locate(p);
-        let w = self.wings(c.cell);
-        stencil_gradient(&self.corners(c.cell), &w, c.frac, 0.5 / self.grid().spacing)
+        GradientCache::default().gradient(self, p)
+    }
+}
+
+/// [`Volume::gradient`] for a sequence of positions that often fall in
+/// the same cell (the hits of neighbouring pixels): the corner differences
+/// of the last cell are kept, so its 32-value stencil is loaded once while
+/// the positions stay in it. The same values as [`Volume::gradient`].
+#[derive(Debug, Clone, Copy, Default)]
+pub struct GradientCache {
+    cell: Option<UVec3>,
+    gradients: CornerGradients,
+}
+
+impl GradientCache {
+    /// The gradient of `volume` at voxel-space position `p`; the cache
+    /// must be used with one volume only.
+    #[inline(always)]
+    pub fn gradient<V: Volume + ?Sized>(&mut self, volume: &V, p: Vec3) -> Vec3 {
+        let at = volume.locate(p);
+        if self.cell != Some(at.cell) {
+            self.cell = Some(at.cell);
+            self.gradients = corner_gradients(&volume.corners(at.cell), &volume.wings(at.cell));
+        }
+        interpolate_gradient(&self.gradients, at.frac, 0.5 / volume.grid().spacing)
     }
 }
 
@@ -174,14 +196,6 @@ pub fn interpolate_gradient(g: &CornerGradients, f: Vec3, inv_two_spacing: Vec3)
     let g10 = lerp(g[4], g[5], fz);
     let g11 = lerp(g[6], g[7], fz);
     lerp(lerp(g00, g01, fy), lerp(g10, g11, fy), fx).truncate() * inv_two_spacing
-}
-
-/// The central-difference gradient (one voxel each way, value units per
-/// world unit) at fractions `f` inside a cell, from its corners and wings:
-/// the trilinear interpolation of the corners' central differences.
-#[inline(always)]
-pub fn stencil_gradient(c: &Corners, w: &Wings, f: Vec3, inv_two_spacing: Vec3) -> Vec3 {
-    interpolate_gradient(&corner_gradients(c, w), f, inv_two_spacing)
 }
 
 /// Loads a cell's corners from `base` with the strides to the x, y and z

@@ -30,7 +30,7 @@ use glam::{IVec3, UVec3, Vec3, Vec4};
 use super::{Fragment, FrameContext, Integrator, Occupancy, Span};
 use crate::accel::{CellClass, CellMasks, IsoCells, SkipGrid};
 use crate::geometry::Aabb;
-use crate::volume::{CornerGradients, Corners, Volume, corner_gradients, interpolate_gradient};
+use crate::volume::{Corners, GradientCache, Volume};
 
 /// How an isosurface's normal is found at a hit.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default, serde::Serialize, serde::Deserialize)]
@@ -78,15 +78,13 @@ pub struct IsoState {
 }
 
 /// What the hits of one tile share ([`IsoState::resolve_in`]): the TF's
-/// colour at the iso value, and the central differences at the corners of
-/// the cell the last hit lay in (a cell spans several pixels, so the next
-/// hit is often in it again, and its 32-value stencil need not be loaded
-/// twice).
+/// colour at the iso value, and the corner differences of the cell the
+/// last hit lay in (a cell spans several pixels, so the next hit is often
+/// in it again).
 #[derive(Debug, Clone, Copy, Default)]
 pub struct ShadingCache {
     colour: Option<Vec3>,
-    cell: Option<UVec3>,
-    gradients: CornerGradients,
+    gradients: GradientCache,
 }
 
 impl Integrator for IsoState {
@@ -171,19 +169,7 @@ impl Integrator for IsoState {
         let rgb = match &ctx.shading {
             Some(ph) => {
                 let g = match ctx.iso_normals {
-                    // What `Volume::gradient` computes, with the corner
-                    // differences of the hit's cell kept for the next hit.
-                    IsoNormals::Gradient => {
-                        let at = ctx.volume.locate(hit.pos);
-                        if cache.cell != Some(at.cell) {
-                            let corners = ctx.volume.corners(at.cell);
-                            let wings = ctx.volume.wings(at.cell);
-                            cache.cell = Some(at.cell);
-                            cache.gradients = corner_gradients(&corners, &wings);
-                        }
-                        let inv_two_spacing = 0.5 / ctx.volume.grid().spacing;
-                        interpolate_gradient(&cache.gradients, at.frac, inv_two_spacing)
-                    }
+                    IsoNormals::Gradient => cache.gradients.gradient(ctx.volume, hit.pos),
                     IsoNormals::Analytic => {
                         let corners = ctx.volume.corners(hit.cell);
                         trilinear_derivative(&corners, hit.pos - hit.cell.as_vec3())
