@@ -228,10 +228,29 @@ fn the_normal_cache_changes_no_colour() {
         &[(0.0, [0.6, 0.5, 0.4], 1.0), (300.0, [0.6, 0.5, 0.4], 1.0)],
     );
     let lab = RayLab::iso(&scene, &tf, 0.5, 100.0).shaded(Phong::default());
+    // Two grazing lights with shadow rays: the cache also keeps the shadow
+    // rays' directions.
+    let lights = [
+        Vec3::new(1.0, 0.2, 0.3).normalize(),
+        Vec3::new(-0.3, 1.0, 0.25).normalize(),
+    ];
+    let shadowed = RayLab::iso(&scene, &tf, 0.5, 100.0)
+        .shaded(Phong::default())
+        .lit(&lights, true);
+    let unshadowed = RayLab::iso(&scene, &tf, 0.5, 100.0)
+        .shaded(Phong::default())
+        .lit(&lights, false);
     let mut cache = ShadingCache::default();
-    let (mut hits, mut shared) = (0, 0);
+    let (mut lit_cache, mut spare) = (cache, cache);
+    let (mut hits, mut shared, mut in_shadow) = (0, 0, 0);
     let eye = c + Vec3::new(3.0, 5.0, 60.0);
     let mut last = None;
+    let same_bits = |a: glam::Vec4, b: glam::Vec4| {
+        assert_eq!(
+            a.to_array().map(f32::to_bits),
+            b.to_array().map(f32::to_bits)
+        );
+    };
     for j in 0..40 {
         for i in 0..40 {
             let target = c + Vec3::new(i as f32 - 20.0, j as f32 - 20.0, 0.0) * 0.45;
@@ -242,22 +261,28 @@ fn the_normal_cache_changes_no_colour() {
             let Some((fresh, cached)) = lab.iso_colours(&ray, &mut cache) else {
                 continue;
             };
-            assert_eq!(
-                fresh.to_array().map(f32::to_bits),
-                cached.to_array().map(f32::to_bits)
-            );
+            same_bits(fresh, cached);
+            let (lit_fresh, lit_cached) = shadowed.iso_colours(&ray, &mut lit_cache).unwrap();
+            same_bits(lit_fresh, lit_cached);
+            let (open, _) = unshadowed.iso_colours(&ray, &mut spare).unwrap();
             if fresh.w > 0.0 {
                 hits += 1;
                 let rgb = fresh.truncate();
                 shared += (last == Some(rgb)) as u32;
                 last = Some(rgb);
+                in_shadow += (open != lit_fresh) as u32;
             }
         }
     }
     // Enough hits, and colours varying from ray to ray (so the gradients
-    // do: a cache that always returned its first cell would fail above).
+    // do: a cache that always returned its first cell would fail above);
+    // some hits shadowed from a light, some not.
     assert!(hits > 400, "{hits} hits");
     assert!(shared < hits / 2, "{shared} of {hits} colours repeat");
+    assert!(
+        in_shadow > 0 && in_shadow < hits,
+        "{in_shadow} of {hits} hits in shadow"
+    );
 }
 
 // -------------------------------------------------------------- iso with ESS

@@ -24,6 +24,9 @@ pub struct RayLab<'a> {
     iso: f32,
     /// Phong shading in the frame context (none by default).
     shading: Option<Phong>,
+    /// Directional lights (a headlight when empty) and shadow rays.
+    lights: Vec<Vec3>,
+    shadows: bool,
 }
 
 /// Work on one ray segment with the frame context of a concretely typed
@@ -63,6 +66,8 @@ impl<'a> RayLab<'a> {
             step,
             iso: iso.unwrap_or(0.0),
             shading: None,
+            lights: Vec::new(),
+            shadows: false,
         }
     }
 
@@ -70,6 +75,16 @@ impl<'a> RayLab<'a> {
     pub fn shaded(self, phong: Phong) -> Self {
         RayLab {
             shading: Some(phong),
+            ..self
+        }
+    }
+
+    /// The same lab with directional lights towards `lights` (world, unit)
+    /// instead of the headlight, and with shadow rays when `shadows`.
+    pub fn lit(self, lights: &[Vec3], shadows: bool) -> Self {
+        RayLab {
+            lights: lights.to_vec(),
+            shadows,
             ..self
         }
     }
@@ -97,8 +112,8 @@ impl<'a> RayLab<'a> {
                     ert: None,
                     shading: lab.shading,
                     iso_value: lab.iso,
-                    lights: &[],
-                    shadows: false,
+                    lights: &lab.lights,
+                    shadows: lab.shadows,
                     light_proxies: &[],
                     iso_normals: Default::default(),
                     avg_norm: 255.0,

@@ -79,8 +79,13 @@ impl Aabb {
             let inv = 1.0 / d;
             let t0 = (lo - o) * inv;
             let t1 = (hi - o) * inv;
-            t.0 = t.0.max(t0.min(t1));
-            t.1 = t.1.min(t0.max(t1));
+            // Plain comparisons (one `minss`/`maxss` each) rather than
+            // `f32::min`/`max`, whose NaN handling triples the instructions
+            // on every ray's critical path; no operand here is NaN for a
+            // finite ray (`d` is not 0).
+            let (near, far) = if t0 < t1 { (t0, t1) } else { (t1, t0) };
+            t.0 = if near > t.0 { near } else { t.0 };
+            t.1 = if far < t.1 { far } else { t.1 };
             true
         }
         let (o, d) = (ray.origin, ray.dir);

@@ -70,7 +70,7 @@ impl RaySegment {
     /// [`RaySegment::new`] with the jitter offset `jitter` (in steps,
     /// `0 <= jitter < 1`) and the samples outside `clip` removed. A ray may
     /// then keep no sample (`first == count`).
-    #[inline]
+    #[inline(always)]
     pub fn with(
         grid: &Grid,
         ray: &Ray,
@@ -81,11 +81,14 @@ impl RaySegment {
         let (t_in, t_out) = grid.bounds().intersect(ray)?;
         // j = 0 gives t0 = t_in exactly: the unjittered samples.
         let t0 = t_in + jitter * step;
+        let inv_step = 1.0 / step;
         // Number of k with t0 + k·s <= t_out, computed as the renderers will.
         let count = if t0 > t_out {
             0
         } else {
-            let mut last = ((t_out - t0) / step).floor().max(0.0) as u32;
+            // An estimate (a multiplication: a division here would sit on
+            // every ray's critical path), made exact below.
+            let mut last = ((t_out - t0) * inv_step).floor().max(0.0) as u32;
             // The estimate is almost always right: test it once before
             // looping (a bare loop is vectorised into a search whose set-up
             // costs every ray more than the loop ever runs).
@@ -110,7 +113,7 @@ impl RaySegment {
             t_out,
             t0,
             step,
-            inv_step: 1.0 / step,
+            inv_step,
             first: 0,
             count,
         };

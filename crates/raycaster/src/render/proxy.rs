@@ -182,8 +182,10 @@ impl ProxyDepth {
 /// unchanged.
 #[derive(Debug, Clone)]
 pub struct LightProxy {
-    frame: CameraFrame,
     depth: ProxyDepth,
+    /// The light view's (orthographic) projection as three affine maps of
+    /// a world point: its pixel coordinates x and y, and its depth.
+    to_view: [(Vec3, f32); 3],
 }
 
 /// The light's view: pixels of about this many of the grid's smallest
@@ -223,7 +225,30 @@ impl LightProxy {
             return None;
         }
         let depth = ProxyDepth::build(&frame, rect, grid, cells);
-        Some(LightProxy { frame, depth })
+        // CameraFrame::project spelled out for this orthographic view, its
+        // divisions folded into the axes (every shadow ray projects its
+        // origin, first thing). It rounds a little differently, which the
+        // margin of a pixel around each drawn box absorbs.
+        let (w, h) = (rect.x1 as f32, rect.y1 as f32);
+        let eye = frame.position();
+        let affine = |axis: Vec3, scale: f32, offset: f32| {
+            let a = axis * scale;
+            (a, offset - eye.dot(a))
+        };
+        let to_view = [
+            affine(
+                frame.right,
+                0.5 * w / (frame.distance * frame.half_height * frame.aspect),
+                0.5 * w,
+            ),
+            affine(
+                frame.up,
+                -0.5 * h / (frame.distance * frame.half_height),
+                0.5 * h,
+            ),
+            affine(frame.forward, 1.0, 0.0),
+        ];
+        Some(LightProxy { depth, to_view })
     }
 
     /// How far (world units) a shadow ray from world point `p` towards the
@@ -232,11 +257,10 @@ impl LightProxy {
     /// or less when the ray meets none.
     #[inline]
     pub fn reach(&self, p: Vec3) -> f32 {
-        let Some((x, y)) = self.frame.project(p) else {
-            return f32::INFINITY;
-        };
-        let rect = self.frame.full_rect();
-        if !(x >= 0.0 && y >= 0.0 && x < rect.x1 as f32 && y < rect.y1 as f32) {
+        let [x, y, depth] = self.to_view.map(|(a, b)| p.dot(a) + b);
+        let rect = self.depth.rect;
+        // Behind the view's image plane, or outside the image.
+        if !(depth >= 0.0 && x >= 0.0 && y >= 0.0 && x < rect.x1 as f32 && y < rect.y1 as f32) {
             return f32::INFINITY;
         }
         let nearest = self.depth.at(x as u32, y as u32);
@@ -244,7 +268,6 @@ impl LightProxy {
             return f32::NEG_INFINITY;
         }
         // The ray climbs towards the light, against the view's depth.
-        let depth = (p - self.frame.position()).dot(self.frame.forward);
         depth - nearest + 1e-4 * (depth.abs() + nearest.abs())
     }
 }

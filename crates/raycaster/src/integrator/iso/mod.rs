@@ -78,14 +78,19 @@ pub struct IsoState {
 }
 
 /// What the hits of one tile share ([`IsoState::resolve_in`]): the TF's
-/// colour at the iso value, and the corner differences of the cell the
-/// last hit lay in (a cell spans several pixels, so the next hit is often
-/// in it again).
+/// colour at the iso value, the corner differences of the cell the last
+/// hit lay in (a cell spans several pixels, so the next hit is often in it
+/// again), and the shadow rays' direction towards each of the first lights
+/// (the same for every shadow ray of the frame: only their origins differ).
 #[derive(Debug, Clone, Copy, Default)]
 pub struct ShadingCache {
     colour: Option<Vec3>,
     gradients: GradientCache,
+    shadow_rays: [Option<VoxelRay>; CACHED_LIGHTS],
 }
+
+/// How many lights' shadow-ray directions a [`ShadingCache`] keeps.
+const CACHED_LIGHTS: usize = 4;
 
 impl Integrator for IsoState {
     type Scratch = ShadingCache;
@@ -191,7 +196,10 @@ impl Integrator for IsoState {
                     let mut rgb = c * ph.ka;
                     for (k, &l) in lights.iter().enumerate() {
                         let ndotl = n.dot(l);
-                        if ndotl <= 0.0 || (ctx.shadows && in_shadow(ctx, hit.pos, n, l, k)) {
+                        if ndotl <= 0.0
+                            || (ctx.shadows
+                                && in_shadow(ctx, hit.pos, n, (l, k), &mut cache.shadow_rays))
+                        {
                             continue;
                         }
                         let (diffuse, spec) = ph.light(n, l, view);
@@ -225,19 +233,27 @@ fn trilinear_derivative(c: &Corners, f: Vec3) -> Vec3 {
 /// Whether the surface point `p` (voxel space) with normal `n` (world,
 /// facing the light) is hidden from a directional light towards `l`
 /// (world, unit; light number `light` of the frame) by the isosurface.
+/// `rays` keeps the first lights' shadow rays (all but their origins).
 fn in_shadow<V: Volume>(
     ctx: &FrameContext<'_, V>,
     p: Vec3,
     n: Vec3,
-    l: Vec3,
-    light: usize,
+    (l, light): (Vec3, usize),
+    rays: &mut [Option<VoxelRay>; CACHED_LIGHTS],
 ) -> bool {
     let grid = ctx.volume.grid();
     // Leave the surface along the normal first: a shadow ray that started
     // on the surface could find the surface itself (shadow acne).
     let normal_vox = (n / grid.spacing).normalize_or_zero();
     let origin = p + normal_vox * SHADOW_OFFSET;
-    let ray = VoxelRay::new(origin, l / grid.spacing);
+    let towards_light = || VoxelRay::new(Vec3::ZERO, l / grid.spacing);
+    let ray = VoxelRay {
+        origin,
+        ..match rays.get_mut(light) {
+            Some(cached) => *cached.get_or_insert_with(towards_light),
+            None => towards_light(),
+        }
+    };
     let bounds = Aabb::new(Vec3::ZERO, grid.max_coord());
     let mut t1 = bounds.exit(ray.origin, ray.inv_dir);
     if let Some(Some(proxy)) = ctx.light_proxies.get(light) {
