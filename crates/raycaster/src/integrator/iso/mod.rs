@@ -25,7 +25,7 @@ mod crossing;
 
 pub use crossing::CellCubic;
 
-use glam::{IVec3, UVec3, Vec3, Vec4};
+use glam::{IVec3, UVec3, Vec3, Vec3A, Vec4};
 
 use super::{Fragment, FrameContext, Integrator, Occupancy, Span};
 use crate::accel::{CellClass, CellMasks, IsoCells, SkipGrid};
@@ -248,14 +248,14 @@ fn in_shadow<V: Volume>(
     let origin = p + normal_vox * SHADOW_OFFSET;
     let towards_light = || VoxelRay::new(Vec3::ZERO, l / grid.spacing);
     let ray = VoxelRay {
-        origin,
+        origin: origin.into(),
         ..match rays.get_mut(light) {
             Some(cached) => *cached.get_or_insert_with(towards_light),
             None => towards_light(),
         }
     };
     let bounds = Aabb::new(Vec3::ZERO, grid.max_coord());
-    let mut t1 = bounds.exit(ray.origin, ray.inv_dir);
+    let mut t1 = bounds.exit(ray.origin.into(), ray.inv_dir.into());
     if let Some(Some(proxy)) = ctx.light_proxies.get(light) {
         // Past the last cell towards the light that can hold the surface
         // there is nothing to find.
@@ -273,11 +273,16 @@ fn in_shadow<V: Volume>(
 const SHADOW_OFFSET: f32 = 0.05;
 
 /// A ray in voxel space, `origin + dir·t`, with what its walk needs.
+///
+/// Its vectors are 16-byte [`Vec3A`]s: the walk reads them as whole
+/// vectors, and a 16-byte load of a [`Vec3`] that was stored as 8 + 4
+/// bytes cannot take its value from the stores in flight (a
+/// store-forwarding stall at the start of every DDA run).
 #[derive(Debug, Clone, Copy)]
 pub(crate) struct VoxelRay {
-    pub origin: Vec3,
-    pub dir: Vec3,
-    pub inv_dir: Vec3,
+    pub origin: Vec3A,
+    pub dir: Vec3A,
+    pub inv_dir: Vec3A,
     /// The DDA's step per axis: ±1, or 0 for a direction component of ±0.
     step: IVec3,
     /// A parameter step of 10⁻⁴ voxel: how far past a face the walk looks
@@ -298,9 +303,9 @@ impl VoxelRay {
     pub fn with_inverse(origin: Vec3, dir: Vec3, inv_dir: Vec3) -> Self {
         let axis_step = |d: f32| (d > 0.0) as i32 - (d < 0.0) as i32;
         VoxelRay {
-            origin,
-            dir,
-            inv_dir,
+            origin: origin.into(),
+            dir: dir.into(),
+            inv_dir: inv_dir.into(),
             step: IVec3::new(axis_step(dir.x), axis_step(dir.y), axis_step(dir.z)),
             nudge: 1e-4 / dir.abs().max_element().max(1e-30),
             tol: 1e-5 / dir.length().max(1e-30),
@@ -309,7 +314,7 @@ impl VoxelRay {
 
     #[inline(always)]
     pub fn at(&self, t: f32) -> Vec3 {
-        self.origin + self.dir * t
+        (self.origin + self.dir * t).into()
     }
 }
 
@@ -416,7 +421,7 @@ impl<'v, V: Volume> Search<'v, V> {
                     coords,
                 } => (bounds, Some((index, coords))),
             };
-            let exit = bounds.exit(ray.origin, ray.inv_dir).min(t1);
+            let exit = bounds.exit(ray.origin.into(), ray.inv_dir.into()).min(t1);
             let mut next = exit.max(t + nudge);
             if let Some((index, coords)) = occupied {
                 match fine.and_then(|f| Some((f, f.masks(index)?))) {
@@ -617,7 +622,7 @@ impl<'v, V: Volume> Search<'v, V> {
         tol: f32,
     ) -> bool {
         let p0 = ray.at(tc) - cell.as_vec3();
-        let cubic = CellCubic::new(corners, p0, ray.dir, self.iso);
+        let cubic = CellCubic::new(corners, p0, ray.dir.into(), self.iso);
         let start_side = cubic.eval(0.0) >= 0.0;
         if self.side == Some(!start_side) {
             self.hit = Some((tc, cell));
