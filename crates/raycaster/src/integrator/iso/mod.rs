@@ -102,7 +102,7 @@ impl Integrator for IsoState {
     /// Searches the part of the ray from sample `start` to sample `end`
     /// (the box's exit for the last piece) for the first crossing. Returns
     /// the number of cells visited.
-    #[inline]
+    #[inline(always)]
     fn integrate<V: Volume>(&mut self, span: Span<'_, V>) -> u64 {
         // A ray that clipping left without samples shows nothing, in every
         // renderer (the object renderer never hands it a span).

@@ -13,7 +13,7 @@ use super::bricks::sample_range;
 use super::footprint::intersect;
 use super::work::FrameWork;
 use crate::integrator::{Integrator, RaySegment, Span};
-use crate::render::driver::FrameJob;
+use crate::render::driver::{FrameJob, render_tile};
 use crate::render::film::{Film, RayCounts};
 use crate::volume::Volume;
 
@@ -63,6 +63,9 @@ struct Shared<'a, V: Volume, I> {
     film: &'a Film,
     work: &'a FrameWork,
     order: TaskOrder,
+    /// One brick spans the volume and the integrator does not split rays:
+    /// a tile is its rays integrated whole, by the shared tile loop.
+    whole_rays: bool,
     /// Tiles not finished yet.
     remaining: AtomicUsize,
     /// Set when the frame stops early (cancelled, or a thread panicked).
@@ -142,11 +145,16 @@ impl<V: Volume, I: Integrator> Shared<'_, V, I> {
         if task.next < len && task.buf.live > 0 {
             return Some(task);
         }
-        out.push((task.tile, self.resolve(task.tile, &task.buf)));
+        self.finish(task.tile, self.resolve(task.tile, &task.buf), out);
+        None
+    }
+
+    /// Hands in tile `tile`'s RGB bytes; ends the frame after the last.
+    fn finish(&self, tile: u32, rgb: Vec<u8>, out: &mut Vec<DoneTile>) {
+        out.push((tile, rgb));
         if self.remaining.fetch_sub(1, Ordering::AcqRel) == 1 {
             self.stop();
         }
-        None
     }
 
     /// The tile's RGB bytes.
@@ -180,6 +188,16 @@ impl<V: Volume, I: Integrator> Shared<'_, V, I> {
     /// A render thread: takes tasks until the frame ends.
     fn render_loop(&self) -> WorkerOut {
         self.worker_loop(&self.tasks.1, |mut task, out| {
+            if self.whole_rays {
+                // The same rays, states and resolution as the tasks below
+                // give, without keeping a tile's segments and states in
+                // buffers between passes over it.
+                let rect = &self.work.tiles[task.tile as usize];
+                let (rgb, samples) = render_tile::<V, I>(self.job, self.film, rect);
+                out.samples += samples;
+                self.finish(task.tile, rgb, &mut out.tiles);
+                return;
+            }
             self.render_task(&mut task, &mut out.samples);
             if !self.inline.load(Ordering::Relaxed) {
                 let _ = self.done.0.send(task);
@@ -246,13 +264,14 @@ impl<V: Volume, I: Integrator> Drop for AbortOnPanic<'_, '_, V, I> {
 
 /// Runs the frame's threads over `work`: `render_threads` render threads
 /// (the calling thread is one of them) and `composite_threads` compositing
-/// threads. Returns the finished tiles and the samples taken, `None` when
-/// the frame was cancelled.
+/// threads. `whole_rays`: the work is one brick spanning the volume, for
+/// an integrator that does not split rays. Returns the finished tiles and
+/// the samples taken, `None` when the frame was cancelled.
 pub(super) fn run_frame<V: Volume, I: Integrator>(
     job: &FrameJob<'_, V>,
     film: &Film,
     work: &FrameWork,
-    threads: (usize, usize),
+    (threads, whole_rays): ((usize, usize), bool),
     order: TaskOrder,
 ) -> Option<(Vec<DoneTile>, u64)> {
     let (render_threads, composite_threads) = threads;
@@ -262,6 +281,7 @@ pub(super) fn run_frame<V: Volume, I: Integrator>(
         film,
         work,
         order,
+        whole_rays,
         remaining: AtomicUsize::new(0),
         aborted: AtomicBool::new(false),
         inline: AtomicBool::new(true),
