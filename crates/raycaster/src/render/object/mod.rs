@@ -89,12 +89,12 @@
 //! does not pay ([`Integrator::SPLITS_RAYS`]: MIP and isosurface), unless a
 //! brick size is given explicitly, use a single brick spanning the volume:
 //! the renderer then integrates whole rays tile by tile with the tiled
-//! renderer's tile loop (`driver::render_tile`),
-//! without keeping a tile's rays and states between passes. Neither mode can drop bricks up front (MIP needs every
-//! brick that might raise a ray's maximum; an isosurface search must compare
-//! the samples on both sides of any region it skips), so splitting their
-//! rays only adds per-segment work; measured on the benchmark view, MIP and
-//! iso were faster whole, x-ray faster in bricks. All modes keep one state
+//! renderer's tile loop (`driver::render_tile`), without keeping a tile's
+//! rays and states between passes. Neither mode can drop bricks up front
+//! (MIP needs every brick that might raise a ray's maximum; an isosurface
+//! search must compare the samples on both sides of any region it skips),
+//! so splitting their rays only adds per-segment work; measured on the
+//! benchmark view, MIP and iso were faster whole, x-ray faster in bricks. All modes keep one state
 //! per pixel and visit its bricks front to back; bricks are culled only for
 //! integrators that say empty space contributes nothing
 //! ([`Integrator::CULLS_EMPTY_BRICKS`]: DVR) with ESS on.
@@ -326,7 +326,7 @@ impl Schedule for Bricks {
         let threads = (self.config.render_threads, self.config.composite_threads);
         let whole_rays = !I::SPLITS_RAYS && set.count == UVec3::ONE;
         let (tiles, samples) =
-            tasks::run_frame::<V, I>(job, film, &work, (threads, whole_rays), self.config.order)?;
+            tasks::run_frame::<V, I>(job, film, &work, threads, whole_rays, self.config.order)?;
         for (t, pixels) in tiles {
             film.put_tile(&work.tiles[t as usize], &pixels);
         }

@@ -271,7 +271,8 @@ pub(super) fn run_frame<V: Volume, I: Integrator>(
     job: &FrameJob<'_, V>,
     film: &Film,
     work: &FrameWork,
-    (threads, whole_rays): ((usize, usize), bool),
+    threads: (usize, usize),
+    whole_rays: bool,
     order: TaskOrder,
 ) -> Option<(Vec<DoneTile>, u64)> {
     let (render_threads, composite_threads) = threads;
