@@ -58,6 +58,24 @@ pub struct CameraFrame {
     height: f32,
 }
 
+/// An orthographic [`CameraFrame`]'s projection of world points as three
+/// affine maps ([`CameraFrame::affine_projection`]).
+#[derive(Debug, Clone, Copy)]
+pub struct AffineProjection {
+    rows: [(Vec3, f32); 3],
+}
+
+impl AffineProjection {
+    /// `[x, y, depth]` of world point `p`: its continuous pixel coordinates
+    /// as [`CameraFrame::project`] gives them (rounded a little
+    /// differently), and its distance in front of the image plane the
+    /// rays start on (negative behind it, where `project` gives `None`).
+    #[inline]
+    pub fn apply(&self, p: Vec3) -> [f32; 3] {
+        self.rows.map(|(a, b)| p.dot(a) + b)
+    }
+}
+
 /// A rectangle of pixels, `[x0, x1) × [y0, y1)`.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
 pub struct PixelRect {
@@ -244,6 +262,35 @@ impl CameraFrame {
         ))
     }
 
+    /// An orthographic frame's [`CameraFrame::project`] as affine maps,
+    /// without its divisions (for projecting many points); `None` under
+    /// perspective, which is not affine.
+    pub fn affine_projection(&self) -> Option<AffineProjection> {
+        if self.projection != Projection::Orthographic {
+            return None;
+        }
+        let row = |axis: Vec3, scale: f32, offset: f32| {
+            let a = axis * scale;
+            (a, offset - self.position.dot(a))
+        };
+        let (w, h) = (self.width, self.height);
+        Some(AffineProjection {
+            rows: [
+                row(
+                    self.right,
+                    0.5 * w / (self.distance * self.half_height * self.aspect),
+                    0.5 * w,
+                ),
+                row(
+                    self.up,
+                    -0.5 * h / (self.distance * self.half_height),
+                    0.5 * h,
+                ),
+                row(self.forward, 1.0, 0.0),
+            ],
+        })
+    }
+
     /// The eye position P (for an orthographic camera, the centre of the
     /// image plane the rays start from).
     pub fn position(&self) -> Vec3 {
@@ -417,6 +464,37 @@ mod tests {
         // Pixel (0, 0) is top-left: ray goes left (-x) and up (+y).
         let r = f.ray(0, 0);
         assert!(r.dir.x < 0.0 && r.dir.y > 0.0);
+    }
+
+    #[test]
+    fn the_affine_projection_is_the_orthographic_projection() {
+        let mut cam = Camera::look_at(Vec3::new(3.0, 4.0, 12.0), Vec3::new(0.5, -1.0, 0.0), 64, 48);
+        assert!(cam.frame().unwrap().affine_projection().is_none());
+        cam.projection = Projection::Orthographic;
+        let f = cam.frame().unwrap();
+        let affine = f.affine_projection().unwrap();
+        let mut rng = fastrand::Rng::with_seed(8);
+        let mut behind = 0;
+        for _ in 0..1000 {
+            let p = Vec3::new(rng.f32(), rng.f32(), rng.f32()) * 30.0 - 15.0;
+            let [x, y, depth] = affine.apply(p);
+            let want = (p - f.position()).dot(f.forward);
+            assert!((depth - want).abs() < 1e-4, "depth {depth} vs {want}");
+            match f.project(p) {
+                Some((px, py)) => {
+                    assert!(depth >= -1e-4);
+                    assert!(
+                        (x - px).abs() < 1e-3 && (y - py).abs() < 1e-3,
+                        "{x},{y} vs {px},{py}"
+                    );
+                }
+                None => {
+                    behind += 1;
+                    assert!(depth < 1e-4);
+                }
+            }
+        }
+        assert!(behind > 0 && behind < 1000, "{behind} behind");
     }
 
     #[test]

@@ -98,14 +98,14 @@ impl Aabb {
 
     /// The exit parameter of a ray known to start inside the box.
     #[inline]
-    pub fn exit(&self, origin: Vec3, inv_dir: Vec3) -> f32 {
-        let inv = Vec3A::from(inv_dir);
+    pub fn exit(&self, origin: impl Into<Vec3A>, inv_dir: impl Into<Vec3A>) -> f32 {
+        let inv: Vec3A = inv_dir.into();
         // Per axis the far plane: the upper one for a positive direction,
         // the lower one for a negative one. An axis the ray is parallel to
         // (1/d = ±∞) never ends it, even with the origin on a plane
         // (0·∞ = NaN); three lanes at once.
         let far = Vec3A::select(inv.cmpge(Vec3A::ZERO), self.max.into(), self.min.into());
-        let t = (far - Vec3A::from(origin)) * inv;
+        let t = (far - origin.into()) * inv;
         Vec3A::select(inv.abs().cmplt(Vec3A::INFINITY), t, Vec3A::INFINITY).min_element()
     }
 }

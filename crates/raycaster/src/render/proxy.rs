@@ -30,7 +30,7 @@ use rayon::prelude::*;
 
 use super::bins::Bins;
 use crate::accel::IsoCells;
-use crate::camera::{Camera, CameraFrame, PixelRect, Projection};
+use crate::camera::{AffineProjection, Camera, CameraFrame, PixelRect, Projection};
 use crate::volume::Grid;
 
 /// At most this many cells are drawn ([`ProxyDepth::pays`]).
@@ -183,9 +183,10 @@ impl ProxyDepth {
 #[derive(Debug, Clone)]
 pub struct LightProxy {
     depth: ProxyDepth,
-    /// The light view's (orthographic) projection as three affine maps of
-    /// a world point: its pixel coordinates x and y, and its depth.
-    to_view: [(Vec3, f32); 3],
+    /// The light view's projection (every shadow ray projects its origin,
+    /// first thing: no divisions). It rounds a little differently from the
+    /// boxes' rectangles, which their margin of a pixel absorbs.
+    to_view: AffineProjection,
 }
 
 /// The light's view: pixels of about this many of the grid's smallest
@@ -224,30 +225,8 @@ impl LightProxy {
         if !ProxyDepth::pays(cells, &rect) {
             return None;
         }
+        let to_view = frame.affine_projection()?;
         let depth = ProxyDepth::build(&frame, rect, grid, cells);
-        // CameraFrame::project spelled out for this orthographic view, its
-        // divisions folded into the axes (every shadow ray projects its
-        // origin, first thing). It rounds a little differently, which the
-        // margin of a pixel around each drawn box absorbs.
-        let (w, h) = (rect.x1 as f32, rect.y1 as f32);
-        let eye = frame.position();
-        let affine = |axis: Vec3, scale: f32, offset: f32| {
-            let a = axis * scale;
-            (a, offset - eye.dot(a))
-        };
-        let to_view = [
-            affine(
-                frame.right,
-                0.5 * w / (frame.distance * frame.half_height * frame.aspect),
-                0.5 * w,
-            ),
-            affine(
-                frame.up,
-                -0.5 * h / (frame.distance * frame.half_height),
-                0.5 * h,
-            ),
-            affine(frame.forward, 1.0, 0.0),
-        ];
         Some(LightProxy { depth, to_view })
     }
 
@@ -257,7 +236,7 @@ impl LightProxy {
     /// or less when the ray meets none.
     #[inline]
     pub fn reach(&self, p: Vec3) -> f32 {
-        let [x, y, depth] = self.to_view.map(|(a, b)| p.dot(a) + b);
+        let [x, y, depth] = self.to_view.apply(p);
         let rect = self.depth.rect;
         // Behind the view's image plane, or outside the image.
         if !(depth >= 0.0 && x >= 0.0 && y >= 0.0 && x < rect.x1 as f32 && y < rect.y1 as f32) {

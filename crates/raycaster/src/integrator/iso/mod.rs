@@ -255,7 +255,7 @@ fn in_shadow<V: Volume>(
         }
     };
     let bounds = Aabb::new(Vec3::ZERO, grid.max_coord());
-    let mut t1 = bounds.exit(ray.origin.into(), ray.inv_dir.into());
+    let mut t1 = bounds.exit(ray.origin, ray.inv_dir);
     if let Some(Some(proxy)) = ctx.light_proxies.get(light) {
         // Past the last cell towards the light that can hold the surface
         // there is nothing to find.
@@ -421,7 +421,7 @@ impl<'v, V: Volume> Search<'v, V> {
                     coords,
                 } => (bounds, Some((index, coords))),
             };
-            let exit = bounds.exit(ray.origin.into(), ray.inv_dir.into()).min(t1);
+            let exit = bounds.exit(ray.origin, ray.inv_dir).min(t1);
             let mut next = exit.max(t + nudge);
             if let Some((index, coords)) = occupied {
                 match fine.and_then(|f| Some((f, f.masks(index)?))) {
