@@ -109,6 +109,12 @@ pub struct Scratch {
     active: Vec<u32>,
     /// The candidates for [`first_hit`] called without a tile's.
     cands: Vec<Cand>,
+    /// The last hit's `t`: the next ray's root search starts there when
+    /// that is in the root's bracket (neighbouring pixels hit close to
+    /// each other). Where the search starts changes the iterations, not
+    /// the root; a tile's rays run in a fixed order on one `Scratch`, so
+    /// the images stay the same for every renderer.
+    last_hit: Option<f64>,
 }
 
 /// A candidate as a tile's rays test it: what the test reads, copied once
@@ -429,13 +435,16 @@ fn first_hit_n<const N: usize, const BOUND: bool>(
             if sign < 0.0 {
                 q.iter_mut().for_each(|c| *c = -*c);
             }
-            if let Some(x) = poly::first_root_n::<N>(&q, len, p.tol) {
+            let guess = s.last_hit.map_or(f64::NAN, |t| (t - t_cur) * inv_sc);
+            if let Some(x) = poly::first_root_n::<N>(&q, len, p.tol, guess) {
                 // The active balls are those whose exit is queued.
                 s.active
                     .extend(s.heap.iter().filter(|e| e.0.exit()).map(|e| e.0.ball()));
                 s.active.sort_unstable();
+                let t = t_cur + x * sc;
+                s.last_hit = Some(t);
                 return RayResult {
-                    t: Some(t_cur + x * sc),
+                    t: Some(t),
                     met: s.met.len() as u32,
                 };
             }
@@ -695,7 +704,9 @@ mod tests {
                 shading: None,
                 lights: &[],
             };
-            let (mut s, mut hits) = (Scratch::default(), 0);
+            // One scratch per list: a ray's root search starts at the last
+            // hit of its own sequence.
+            let (mut sa, mut sb, mut hits) = (Scratch::default(), Scratch::default(), 0);
             let (mut plain, mut tight) = (Vec::new(), Vec::new());
             let mut dropped = 0;
             for ty in 0..lists.rows {
@@ -732,8 +743,8 @@ mod tests {
                                     kept.t_lo
                                 );
                             }
-                            let a = first_hit_tile(&p, &ray, &plain, &mut s);
-                            let b = first_hit_tile(&p, &ray, &tight, &mut s);
+                            let a = first_hit_tile(&p, &ray, &plain, &mut sa);
+                            let b = first_hit_tile(&p, &ray, &tight, &mut sb);
                             assert_eq!(a.t.map(f64::to_bits), b.t.map(f64::to_bits), "{i},{j}");
                             hits += a.t.is_some() as u32;
                         }
