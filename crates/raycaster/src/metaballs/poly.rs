@@ -202,12 +202,7 @@ pub fn first_root_n<const N: usize>(p: &Poly, len: f64, tol: f64, guess: f64) ->
 
 /// [`first_root_n`] without the cheap bound: Bernstein isolation.
 #[inline(never)]
-fn first_root_bernstein_n<const N: usize>(
-    p: &Poly,
-    len: f64,
-    tol: f64,
-    guess: f64,
-) -> Option<f64> {
+fn first_root_bernstein_n<const N: usize>(p: &Poly, len: f64, tol: f64, guess: f64) -> Option<f64> {
     let b = bernstein_n::<N>(p, len);
     search::<N>(p, &b, 0.0, len, tol.max(len * 1e-12), guess)
 }
@@ -232,14 +227,7 @@ fn sign_changes<const N: usize>(b: &Poly) -> u32 {
 
 /// The first root of `p` on `[a, a + w]`, whose Bernstein coefficients are
 /// `b`, with `p(a) < 0` unless it is the first call.
-fn search<const N: usize>(
-    p: &Poly,
-    b: &Poly,
-    a: f64,
-    w: f64,
-    tol: f64,
-    guess: f64,
-) -> Option<f64> {
+fn search<const N: usize>(p: &Poly, b: &Poly, a: f64, w: f64, tol: f64, guess: f64) -> Option<f64> {
     if b[0] >= 0.0 {
         return Some(a);
     }
@@ -257,8 +245,7 @@ fn search<const N: usize>(
     }
     let (left, right) = split::<N>(b);
     let h = 0.5 * w;
-    search::<N>(p, &left, a, h, tol, guess)
-        .or_else(|| search::<N>(p, &right, a + h, h, tol, guess))
+    search::<N>(p, &left, a, h, tol, guess).or_else(|| search::<N>(p, &right, a + h, h, tol, guess))
 }
 
 /// The one root of `p` in `[lo, hi]` (`p(lo) < 0 < p(hi)`, their values
@@ -440,7 +427,10 @@ mod tests {
             tested += 1;
             for guess in [plain, plain + 0.01, plain - 0.003, 0.999, 0.0, -1.0, 2.0] {
                 let got = first_root_n::<6>(&p, 1.0, tol, guess).unwrap();
-                assert!((got - plain).abs() <= tol, "{guess}: {got} vs {plain}: {p:?}");
+                assert!(
+                    (got - plain).abs() <= tol,
+                    "{guess}: {got} vs {plain}: {p:?}"
+                );
             }
         }
         assert!(tested > 300, "{tested}");
