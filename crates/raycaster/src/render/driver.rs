@@ -257,7 +257,12 @@ fn render_frame<S: Schedule>(
 
 /// The tile loop: integrates every pixel of `rect` whole with `I` and
 /// returns the tile's RGB bytes (row-major) and the samples taken.
-#[inline]
+///
+/// Never inlined: the object renderer calls it from the thread that runs
+/// the frame and from the threads it spawns, and inlined into both it
+/// became two copies of the integrator's loop that the compiler optimised
+/// differently (one slower, with the iso cell test out of line).
+#[inline(never)]
 pub(crate) fn render_tile<V: Volume, I: Integrator>(
     job: &FrameJob<'_, V>,
     film: &Film,

@@ -611,7 +611,7 @@ impl<'v, V: Volume> Search<'v, V> {
 
     /// Solves for the first crossing inside `cell`, whose `corners`
     /// straddle the iso value, on `[tc, te]`; true when found.
-    #[inline]
+    #[inline(always)]
     fn crossing(
         &mut self,
         ray: &VoxelRay,
