@@ -185,7 +185,11 @@ impl<V: Volume, I: Integrator> Shared<'_, V, I> {
         self.aborted.load(Ordering::Relaxed) || self.job.cancel.is_cancelled()
     }
 
-    /// A render thread: takes tasks until the frame ends.
+    /// A render thread: takes tasks until the frame ends. Never inlined:
+    /// the calling thread and the spawned ones run it, and inlined into
+    /// both callers it became two copies of the integrator's loop that the
+    /// compiler optimised differently.
+    #[inline(never)]
     fn render_loop(&self) -> WorkerOut {
         self.worker_loop(&self.tasks.1, |mut task, out| {
             if self.whole_rays {
