@@ -105,9 +105,9 @@ pub struct Scratch {
     heap: BinaryHeap<Reverse<Event>>,
     met: Vec<Met>,
     /// After a hit: the balls active there (entered, not yet left), for
-    /// [`shade`], in the heap's order (which follows from the ray's
-    /// candidate list, the same for every renderer; sorting them cost 5 %
-    /// of a frame of 8000 balls).
+    /// [`shade`], in the heap's order: that follows from the tile's
+    /// candidate list, the same for every renderer, so there is no need to
+    /// sort them (which showed in profiles of dense lattices).
     active: Vec<u32>,
     /// The candidates for [`first_hit`] called without a tile's.
     cands: Vec<Cand>,
