@@ -393,7 +393,9 @@ fn analytic_normals_agree_on_a_plane_and_differ_on_a_sphere() {
 /// pixels cannot hit) change nothing: with skipping the image and counts
 /// equal those of the walk over every cell without it, from outside and
 /// inside the volume, under both projections, with a clip box, and for
-/// every renderer.
+/// every renderer (which also checks the count of rays entering the box,
+/// taken without tracing the culled rays of a tile whose corner rays all
+/// enter it).
 #[test]
 fn starting_rays_at_the_proxy_depth_finds_the_same_hits() {
     let s = SphereOnPlane::new();

@@ -46,20 +46,34 @@ impl<V: Volume> FrameJob<'_, V> {
     pub fn segment(&self, i: u32, j: u32) -> Option<RaySegment> {
         match self.pixel(i, j) {
             PixelRay::Misses => None,
-            PixelRay::Culled(seg) | PixelRay::Searched(seg) => Some(seg),
+            PixelRay::Culled(seg) => seg,
+            PixelRay::Searched(seg) => Some(seg),
         }
     }
 
     /// [`FrameJob::segment`], telling apart a ray the proxy depths cull.
     #[inline(always)]
     pub fn pixel(&self, i: u32, j: u32) -> PixelRay {
+        self.pixel_in(i, j, false)
+    }
+
+    /// [`FrameJob::pixel`] for a pixel of a rectangle whose rays all enter
+    /// the volume's box when `all_enter` ([`FrameJob::all_enter`]): a ray
+    /// the proxy depths cull is then not traced to the box only to be
+    /// counted as entering it.
+    #[inline(always)]
+    pub fn pixel_in(&self, i: u32, j: u32, all_enter: bool) -> PixelRay {
         let grid = self.ctx.volume.grid();
-        let ray = self.plan.camera.ray(i, j);
         let start = self.plan.proxy.as_ref().map(|p| p.at(i, j));
         if start == Some(f32::INFINITY) {
+            if all_enter {
+                return PixelRay::Culled(None);
+            }
+            let ray = self.plan.camera.ray(i, j);
             return RaySegment::entering(grid, &ray, self.plan.step)
-                .map_or(PixelRay::Misses, PixelRay::Culled);
+                .map_or(PixelRay::Misses, |seg| PixelRay::Culled(Some(seg)));
         }
+        let ray = self.plan.camera.ray(i, j);
         let Some(mut seg) = RaySegment::with(
             grid,
             &ray,
@@ -74,6 +88,27 @@ impl<V: Volume> FrameJob<'_, V> {
         }
         PixelRay::Searched(seg)
     }
+
+    /// Whether every pixel ray of `rect` enters the volume's box: its four
+    /// corner pixels' rays do. The rays of one frame that meet a convex
+    /// box form a convex set (a cone from a perspective eye, a convex
+    /// region of origins for parallel rays), and a pixel's ray lies between
+    /// its rectangle's corner rays, no closer to that set's edge than the
+    /// nearest of them.
+    pub fn all_enter(&self, rect: &PixelRect) -> bool {
+        if rect.is_empty() {
+            return false;
+        }
+        let bounds = self.ctx.volume.grid().bounds();
+        [
+            (rect.x0, rect.y0),
+            (rect.x1 - 1, rect.y0),
+            (rect.x0, rect.y1 - 1),
+            (rect.x1 - 1, rect.y1 - 1),
+        ]
+        .into_iter()
+        .all(|(i, j)| bounds.intersect(&self.plan.camera.ray(i, j)).is_some())
+    }
 }
 
 /// What [`FrameJob::pixel`] found for a pixel's ray.
@@ -84,7 +119,9 @@ pub enum PixelRay {
     /// It enters the box, but the frame's proxy depths say it meets no
     /// cell that can hold the surface (only exact iso frames have them):
     /// its segment keeps no sample, and its pixel shows the background.
-    Culled(RaySegment),
+    /// `None` when the segment was not worked out (see
+    /// [`FrameJob::pixel_in`]).
+    Culled(Option<RaySegment>),
     /// The part of it to integrate.
     Searched(RaySegment),
 }
@@ -272,9 +309,10 @@ pub(crate) fn render_tile<V: Volume, I: Integrator>(
     let mut samples = 0;
     let mut counts = RayCounts::default();
     let mut scratch = I::Scratch::default();
+    let all_enter = job.plan.proxy.is_some() && job.all_enter(rect);
     for j in rect.y0..rect.y1 {
         for i in rect.x0..rect.x1 {
-            let px = match job.pixel(i, j) {
+            let px = match job.pixel_in(i, j, all_enter) {
                 PixelRay::Misses => film.background_rgb(),
                 // What the iso search of an empty segment ends with, without
                 // integrating and resolving nothing.
