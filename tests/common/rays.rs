@@ -139,7 +139,11 @@ impl<'a> RayLab<'a> {
             fn run<V: Volume>(self, ctx: &FrameContext<'_, V>, seg: &RaySegment) -> Self::Out {
                 let mut st = IsoState::default();
                 let n = st.integrate(Span::whole(ctx, seg));
-                (st.hit.map(|h| ctx.volume.grid().voxel_to_world(h.pos)), n)
+                (
+                    st.hit
+                        .map(|h| ctx.volume.grid().voxel_to_world(h.pos.into())),
+                    n,
+                )
             }
         }
         self.run(ray, ess, Iso).unwrap_or((None, 0))

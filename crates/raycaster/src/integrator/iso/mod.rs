@@ -59,8 +59,10 @@ pub enum IsoNormals {
 pub struct IsoHit {
     /// Ray parameter (world units).
     pub t: f32,
-    /// Voxel-space position.
-    pub pos: Vec3,
+    /// Voxel-space position (16 bytes: written whole by the search and
+    /// read whole by the shading, where a narrowly stored `Vec3` read as
+    /// one vector stalls).
+    pub pos: Vec3A,
     /// The interpolation cell the crossing lies in.
     pub cell: UVec3,
     /// World direction of the ray (unit), for shading.
@@ -131,7 +133,7 @@ impl Integrator for IsoState {
         if let Some((t, cell)) = search.hit {
             self.hit = Some(IsoHit {
                 t,
-                pos: ray.at(t),
+                pos: ray.origin + ray.dir * t,
                 cell,
                 world_dir: seg.world_dir,
             });
@@ -174,10 +176,10 @@ impl Integrator for IsoState {
         let rgb = match &ctx.shading {
             Some(ph) => {
                 let g = match ctx.iso_normals {
-                    IsoNormals::Gradient => cache.gradients.gradient(ctx.volume, hit.pos),
+                    IsoNormals::Gradient => cache.gradients.gradient(ctx.volume, hit.pos.into()),
                     IsoNormals::Analytic => {
                         let corners = ctx.volume.corners(hit.cell);
-                        trilinear_derivative(&corners, hit.pos - hit.cell.as_vec3())
+                        trilinear_derivative(&corners, Vec3::from(hit.pos) - hit.cell.as_vec3())
                             / ctx.volume.grid().spacing
                     }
                 };
@@ -198,7 +200,13 @@ impl Integrator for IsoState {
                         let ndotl = n.dot(l);
                         if ndotl <= 0.0
                             || (ctx.shadows
-                                && in_shadow(ctx, hit.pos, n, (l, k), &mut cache.shadow_rays))
+                                && in_shadow(
+                                    ctx,
+                                    hit.pos.into(),
+                                    n,
+                                    (l, k),
+                                    &mut cache.shadow_rays,
+                                ))
                         {
                             continue;
                         }
