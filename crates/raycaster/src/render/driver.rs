@@ -99,7 +99,7 @@ impl<V: Volume> FrameJob<'_, V> {
         if rect.is_empty() {
             return false;
         }
-        let bounds = self.ctx.volume.grid().bounds();
+        let grid = self.ctx.volume.grid();
         [
             (rect.x0, rect.y0),
             (rect.x1 - 1, rect.y0),
@@ -107,7 +107,9 @@ impl<V: Volume> FrameJob<'_, V> {
             (rect.x1 - 1, rect.y1 - 1),
         ]
         .into_iter()
-        .all(|(i, j)| bounds.intersect(&self.plan.camera.ray(i, j)).is_some())
+        .all(|(i, j)| {
+            RaySegment::entering(grid, &self.plan.camera.ray(i, j), self.plan.step).is_some()
+        })
     }
 }
 

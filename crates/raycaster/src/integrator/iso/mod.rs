@@ -133,7 +133,7 @@ impl Integrator for IsoState {
         if let Some((t, cell)) = search.hit {
             self.hit = Some(IsoHit {
                 t,
-                pos: ray.origin + ray.dir * t,
+                pos: ray.at(t).into(),
                 cell,
                 world_dir: seg.world_dir,
             });
