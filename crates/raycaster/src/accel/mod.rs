@@ -21,4 +21,4 @@ mod skip;
 pub use iso_cells::{CellMasks, IsoCells};
 pub use macrocell::MacrocellGrid;
 pub use runs::{RunKind, SampleRun, SkipRuns};
-pub use skip::{CellClass, SkipGrid};
+pub use skip::{Ahead, CellClass, SkipGrid};

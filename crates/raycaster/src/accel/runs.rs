@@ -6,8 +6,10 @@
 //! empty run, composite a uniform cell in closed form, march sample by
 //! sample, skip a cell whose range cannot change the result).
 
+use glam::{IVec3, UVec3};
+
 use super::SkipGrid;
-use super::skip::CellClass;
+use super::skip::{Ahead, CellKind};
 use crate::integrator::RaySegment;
 
 /// What a run of samples lies in.
@@ -35,12 +37,28 @@ pub struct SampleRun {
 }
 
 /// The runs of samples `k0..k1` of a ray (see [`SkipRuns::new`]).
+///
+/// Each run is the macrocell (or empty box) holding its first sample,
+/// found by [`SkipGrid::classify`]'s rules, and ends at the first sample at
+/// or after the ray leaves that box. A classification from scratch is a
+/// chain of dependent steps (the sample's position, its cell, the cell's
+/// box, the box's exit, the next sample) that the processor cannot overlap
+/// from one run to the next. So the runs also walk the macrocells with a
+/// 3D DDA ([`MacrocellWalk`]), which knows the next cell and where the ray
+/// leaves it from the last one, and only check that the cell of the run's
+/// first sample is the one the DDA predicted: the check is a branch that
+/// is almost always taken, off the chain. The runs are the same either
+/// way: the DDA's exit is the cell box's slab exit, bit for bit.
 #[derive(Debug, Clone)]
 pub struct SkipRuns<'a> {
     skip: Option<&'a SkipGrid>,
     seg: &'a RaySegment,
     k: u32,
     k1: u32,
+    /// The DDA's cell, when there is a prediction.
+    walk: Option<MacrocellWalk>,
+    /// The empty space ahead of the ray (when skipping).
+    ahead: Option<Ahead<'a>>,
 }
 
 impl<'a> SkipRuns<'a> {
@@ -54,6 +72,8 @@ impl<'a> SkipRuns<'a> {
             seg,
             k: k0.max(seg.first),
             k1: k1.min(seg.count),
+            walk: None,
+            ahead: skip.map(|s| s.ahead(seg.inv_dir)),
         }
     }
 }
@@ -67,7 +87,7 @@ impl Iterator for SkipRuns<'_> {
         if k >= self.k1 {
             return None;
         }
-        let Some(skip) = self.skip else {
+        let (Some(skip), Some(ahead)) = (self.skip, self.ahead) else {
             self.k = self.k1;
             return Some(SampleRun {
                 start: k,
@@ -75,18 +95,43 @@ impl Iterator for SkipRuns<'_> {
                 kind: RunKind::Unknown,
             });
         };
+        let (cell, index) = skip.locate(seg.pos(k));
+        let walk = match self.walk {
+            Some(w) if w.cell == cell.as_ivec3() => w,
+            _ => MacrocellWalk::new(skip, seg, cell, index),
+        };
         // The run ends at the first sample at or after the box's exit
         // (possibly one early, never late: see `first_index_at_or_after`),
         // and always advances.
-        let (bounds, kind) = match skip.classify(seg.pos(k)) {
-            CellClass::Occupied { bounds, index, .. } => (bounds, RunKind::Cell(index)),
-            CellClass::Empty(bounds) => (bounds, RunKind::Empty),
-        };
-        let mut end = seg
-            .first_index_at_or_after(bounds.exit(seg.origin, seg.inv_dir))
-            .max(k + 1);
+        let (kind, exit, walking) =
+            match skip.cell_kind_ahead(walk.cell.as_uvec3(), walk.index as usize, ahead) {
+                CellKind::Occupied => (RunKind::Cell(walk.index as usize), walk.exit(), true),
+                CellKind::EmptyAlone => (RunKind::Empty, walk.exit(), true),
+                CellKind::EmptyWithin(b) => {
+                    (RunKind::Empty, b.exit(seg.origin, seg.inv_dir), false)
+                }
+            };
+        let mut end = seg.first_index_at_or_after(exit).max(k + 1);
         if kind != RunKind::Empty {
             end = end.min(self.k1);
+        }
+        // The prediction for the next run: the first cell along the ray
+        // that the next sample can lie in (a cell whose exit comes before
+        // it holds no sample). After a jump over an empty box there is
+        // none.
+        self.walk = None;
+        if walking {
+            let t_end = seg.t(end);
+            let mut w = walk;
+            for _ in 0..3 {
+                if !w.advance(skip, seg) {
+                    break;
+                }
+                if w.exit() > t_end {
+                    self.walk = Some(w);
+                    break;
+                }
+            }
         }
         self.k = end;
         Some(SampleRun {
@@ -94,5 +139,90 @@ impl Iterator for SkipRuns<'_> {
             end,
             kind,
         })
+    }
+}
+
+/// A 3D DDA's position among the skip grid's macrocells: the cell, its
+/// index, and where the ray leaves it across the plane ahead on each axis,
+/// computed as [`Aabb::exit`] computes the cell box's (so the least of
+/// them is that exit exactly).
+///
+/// [`Aabb::exit`]: crate::geometry::Aabb::exit
+#[derive(Debug, Clone, Copy)]
+struct MacrocellWalk {
+    cell: IVec3,
+    index: isize,
+    next: [f32; 3],
+}
+
+impl MacrocellWalk {
+    #[inline(always)]
+    fn new(skip: &SkipGrid, seg: &RaySegment, cell: UVec3, index: usize) -> Self {
+        let cell = cell.as_ivec3();
+        MacrocellWalk {
+            cell,
+            index: index as isize,
+            next: std::array::from_fn(|a| plane(skip, seg, cell[a], a)),
+        }
+    }
+
+    /// Where the ray leaves the cell.
+    #[inline(always)]
+    fn exit(&self) -> f32 {
+        self.next[0].min(self.next[1]).min(self.next[2])
+    }
+
+    /// Steps into the next cell along the ray; false when that is off the
+    /// grid (or the ray moves along no axis).
+    #[inline(always)]
+    fn advance(&mut self, skip: &SkipGrid, seg: &RaySegment) -> bool {
+        let n = self.next;
+        let a = if n[0] <= n[1] && n[0] <= n[2] {
+            0
+        } else if n[1] <= n[2] {
+            1
+        } else {
+            2
+        };
+        let s = step(seg, a);
+        let c = self.cell[a] + s;
+        if s == 0 || c < 0 || c >= skip.count()[a] as i32 {
+            return false;
+        }
+        self.cell[a] = c;
+        self.index += s as isize * skip.index_strides()[a];
+        self.next[a] = plane(skip, seg, c, a);
+        true
+    }
+}
+
+/// The DDA's step along axis `a`: ±1, 0 where the ray does not move along
+/// it (or so little that `1/d` overflows: [`Aabb::exit`] ignores such an
+/// axis too).
+///
+/// [`Aabb::exit`]: crate::geometry::Aabb::exit
+#[inline(always)]
+fn step(seg: &RaySegment, a: usize) -> i32 {
+    let inv = seg.inv_dir[a];
+    if inv.abs() < f32::INFINITY {
+        if inv >= 0.0 { 1 } else { -1 }
+    } else {
+        0
+    }
+}
+
+/// Where the ray leaves macrocell coordinate `c` on axis `a` (+∞ when it
+/// does not move along `a`), as the slab test of the cell's box computes
+/// it: the box's corner `c·side`, its far side `c·side + side`.
+#[inline(always)]
+fn plane(skip: &SkipGrid, seg: &RaySegment, c: i32, a: usize) -> f32 {
+    let side = skip.cell_side();
+    let lo = c as f32 * side;
+    match step(seg, a) {
+        0 => f32::INFINITY,
+        s => {
+            let far = if s > 0 { lo + side } else { lo };
+            (far - seg.origin[a]) * seg.inv_dir[a]
+        }
     }
 }

@@ -5,6 +5,8 @@
 
 #[cfg(target_arch = "x86_64")]
 use glam::Vec3A;
+use std::sync::OnceLock;
+
 use glam::{UVec3, Vec3};
 
 use super::{IsoCells, MacrocellGrid};
@@ -31,6 +33,17 @@ pub enum CellClass {
     },
 }
 
+/// [`SkipGrid::cell_kind`]'s answer.
+#[derive(Debug, Clone, Copy)]
+pub(crate) enum CellKind {
+    /// The cell may contribute.
+    Occupied,
+    /// The cell contributes nothing, but a neighbour may.
+    EmptyAlone,
+    /// Nothing in this box around the cell (voxel space) contributes.
+    EmptyWithin(Aabb),
+}
+
 /// Which macrocells may contribute, and how far empty space extends.
 ///
 /// Two levels: occupancy per macrocell, and a distance field over *coarse*
@@ -50,6 +63,15 @@ pub struct SkipGrid {
     occupied: Vec<u64>,
     coarse_count: UVec3,
     distance: Vec<u8>,
+    /// Per direction octant (bit `a` set: moving towards lower coordinates
+    /// on axis `a`), per coarse cell: how many coarse cells a side the
+    /// empty cube has that has this cell as its corner and extends in that
+    /// octant's direction (0 when the cell is occupied). A ray leaves only
+    /// through the faces ahead of it, and ahead of a ray that has just
+    /// passed an object lies far more empty space than around it, which
+    /// is all `distance` knows. Built on first use: a frame's rays mostly
+    /// share one or a few octants.
+    ahead: [OnceLock<Vec<u8>>; 8],
     /// For an iso value, the fine level: which interpolation cells of the
     /// occupied macrocells straddle it.
     iso_cells: Option<IsoCells>,
@@ -129,6 +151,7 @@ impl SkipGrid {
             occupied,
             coarse_count,
             distance,
+            ahead: Default::default(),
             iso_cells: None,
         }
     }
@@ -225,15 +248,61 @@ impl SkipGrid {
     /// occupied (with its own box and its index in the macrocell grid).
     #[inline(always)]
     pub fn classify(&self, p: Vec3) -> CellClass {
-        let c = self.cell_of(p);
-        let index = self.index(c);
-        if self.is_occupied_index(index) {
+        let (c, index) = self.locate(p);
+        self.class_of(c, index, self.cell_kind(c, index))
+    }
+
+    /// [`SkipGrid::classify`] for a ray moving into the empty space `ahead`
+    /// ([`SkipGrid::ahead`]): an empty box extends ahead of the ray
+    /// ([`SkipGrid::cell_kind_ahead`]), so it is mostly longer along it.
+    #[inline(always)]
+    pub fn classify_ahead(&self, p: Vec3, ahead: Ahead<'_>) -> CellClass {
+        let (c, index) = self.locate(p);
+        self.class_of(c, index, self.cell_kind_ahead(c, index, ahead))
+    }
+
+    /// The empty space ahead of rays with inverse direction `inv_dir`
+    /// (for [`SkipGrid::classify_ahead`]): its direction octant's field,
+    /// built by the first ray that asks for it.
+    #[inline]
+    pub fn ahead(&self, inv_dir: Vec3) -> Ahead<'_> {
+        // Bit `a` set: towards lower coordinates on axis `a` (an axis the
+        // ray does not move along may take either side).
+        let octant = (inv_dir.x < 0.0) as usize
+            | ((inv_dir.y < 0.0) as usize) << 1
+            | ((inv_dir.z < 0.0) as usize) << 2;
+        self.ahead_of(octant)
+    }
+
+    fn ahead_of(&self, octant: usize) -> Ahead<'_> {
+        let sides = self.ahead[octant]
+            .get_or_init(|| octant_distances(&self.distance, self.coarse_count, octant));
+        Ahead { octant, sides }
+    }
+
+    #[inline(always)]
+    fn class_of(&self, c: UVec3, index: usize, kind: CellKind) -> CellClass {
+        let own_box = || {
             let lo = c.as_vec3() * self.cell;
-            return CellClass::Occupied {
-                bounds: Aabb::new(lo, lo + Vec3::splat(self.cell)),
+            Aabb::new(lo, lo + Vec3::splat(self.cell))
+        };
+        match kind {
+            CellKind::Occupied => CellClass::Occupied {
+                bounds: own_box(),
                 index,
                 coords: c,
-            };
+            },
+            CellKind::EmptyAlone => CellClass::Empty(own_box()),
+            CellKind::EmptyWithin(b) => CellClass::Empty(b),
+        }
+    }
+
+    /// [`SkipGrid::classify`] of cell `c` (index `index`) without its own
+    /// box, which a walk that knows where it leaves the cell does not need.
+    #[inline(always)]
+    pub(crate) fn cell_kind(&self, c: UVec3, index: usize) -> CellKind {
+        if self.is_occupied_index(index) {
+            return CellKind::Occupied;
         }
         let cc = c / 2;
         let d = self.distance[(cc.x as usize * self.coarse_count.y as usize + cc.y as usize)
@@ -241,15 +310,67 @@ impl SkipGrid {
             + cc.z as usize];
         if d == 0 {
             // A sibling is occupied: only this cell is known empty.
-            let lo = c.as_vec3() * self.cell;
-            return CellClass::Empty(Aabb::new(lo, lo + Vec3::splat(self.cell)));
+            return CellKind::EmptyAlone;
         }
         // The coarse cells within Chebyshev distance d − 1 are all empty.
         let coarse = 2.0 * self.cell;
         let r = (d - 1) as f32;
         let lo = (cc.as_vec3() - Vec3::splat(r)) * coarse;
         let hi = (cc.as_vec3() + Vec3::splat(r + 1.0)) * coarse;
-        CellClass::Empty(Aabb::new(lo, hi))
+        CellKind::EmptyWithin(Aabb::new(lo, hi))
+    }
+
+    /// [`SkipGrid::cell_kind`] for a ray moving into the empty space
+    /// `ahead`: an empty box is the largest empty cube of coarse cells that
+    /// has the cell's coarse cell as its corner and extends ahead of the
+    /// ray, which the ray leaves only through its far faces.
+    #[inline(always)]
+    pub(crate) fn cell_kind_ahead(&self, c: UVec3, index: usize, ahead: Ahead<'_>) -> CellKind {
+        let Ahead { octant, sides } = ahead;
+        if self.is_occupied_index(index) {
+            return CellKind::Occupied;
+        }
+        let cc = c / 2;
+        let d = sides[(cc.x as usize * self.coarse_count.y as usize + cc.y as usize)
+            * self.coarse_count.z as usize
+            + cc.z as usize];
+        if d == 0 {
+            return CellKind::EmptyAlone;
+        }
+        let coarse = 2.0 * self.cell;
+        let cf = cc.as_vec3();
+        let reach = (d - 1) as f32;
+        let (mut lo, mut hi) = (cf, cf + Vec3::ONE);
+        for a in 0..3 {
+            if octant >> a & 1 == 0 {
+                hi[a] += reach;
+            } else {
+                lo[a] -= reach;
+            }
+        }
+        CellKind::EmptyWithin(Aabb::new(lo * coarse, hi * coarse))
+    }
+
+    /// The macrocell holding voxel-space point `p` (clamped onto the grid)
+    /// and its index.
+    #[inline(always)]
+    pub(crate) fn locate(&self, p: Vec3) -> (UVec3, usize) {
+        let c = self.cell_of(p);
+        (c, self.index(c))
+    }
+
+    /// A macrocell's side (voxels).
+    #[inline(always)]
+    pub(crate) fn cell_side(&self) -> f32 {
+        self.cell
+    }
+
+    /// How far apart in the index neighbouring macrocells lie along each
+    /// axis.
+    #[inline(always)]
+    pub(crate) fn index_strides(&self) -> [isize; 3] {
+        let (ny, nz) = (self.count.y as isize, self.count.z as isize);
+        [ny * nz, nz, 1]
     }
 
     /// For voxel-space point `p`: `None` when its cell may contribute;
@@ -287,6 +408,97 @@ fn pack_bits(flags: &[bool]) -> u64 {
         word |= gathered << (8 * k);
     }
     word
+}
+
+/// The empty space ahead of the rays of one direction octant
+/// ([`SkipGrid::ahead`]).
+#[derive(Debug, Clone, Copy)]
+pub struct Ahead<'a> {
+    /// Bit `a` set: towards lower coordinates on axis `a`.
+    octant: usize,
+    /// Per coarse cell, the side of the empty cube ahead.
+    sides: &'a [u8],
+}
+
+/// The field of [`SkipGrid::ahead`] for `octant` from the coarse cells'
+/// chessboard distances (`0`: occupied): one raster pass against the
+/// direction: the empty cube of side `n` at a cell is the cell and the
+/// cubes of side `n − 1` at its seven neighbours ahead, so a cell's side is
+/// one more than the least of theirs (a neighbour off the grid counts as
+/// unbounded: rays leave the grid there).
+fn octant_distances(distance: &[u8], n: UVec3, octant: usize) -> Vec<u8> {
+    let (nx, ny, nz) = (n.x as usize, n.y as usize, n.z as usize);
+    let row = |x: usize, y: usize| (x * ny + y) * nz;
+    let back = |a: usize| octant >> a & 1 == 1;
+    // Coordinates in the order of the pass (the neighbours ahead come
+    // first), each with its neighbour ahead on its axis.
+    let order = |len: usize, a: usize| -> Vec<(usize, Option<usize>)> {
+        if back(a) {
+            (0..len).map(|i| (i, i.checked_sub(1))).collect()
+        } else {
+            (0..len)
+                .rev()
+                .map(|i| (i, Some(i + 1).filter(|&j| j < len)))
+                .collect()
+        }
+    };
+    let (xs, ys) = (order(nx, 0), order(ny, 1));
+    let mut d = vec![u8::MAX; distance.len()];
+    let mut m = vec![u8::MAX; nz];
+    let mut shifted = vec![u8::MAX; nz];
+    for &(x, ax) in &xs {
+        for &(y, ay) in &ys {
+            // The least side at the neighbours ahead in earlier rows:
+            // (x', y), (x, y'), (x', y'), each at z and at z ahead.
+            m.fill(u8::MAX);
+            let rows = [
+                ax.map(|x2| row(x2, y)),
+                ay.map(|y2| row(x, y2)),
+                ax.zip(ay).map(|(x2, y2)| row(x2, y2)),
+            ];
+            for r in rows.into_iter().flatten() {
+                let src = &d[r..r + nz];
+                shift_ahead(src, &mut shifted, back(2));
+                for ((a, &b), &c) in m.iter_mut().zip(src).zip(&shifted) {
+                    *a = (*a).min(b).min(c);
+                }
+            }
+            // Then the neighbour ahead along z, in the pass's order.
+            let r = row(x, y);
+            let (occupied, cells) = (&distance[r..r + nz], &mut d[r..r + nz]);
+            let mut ahead = u8::MAX;
+            let mut set = |z: usize| {
+                ahead = if occupied[z] == 0 {
+                    0
+                } else {
+                    m[z].min(ahead).saturating_add(1)
+                };
+                cells[z] = ahead;
+            };
+            if back(2) {
+                (0..nz).for_each(&mut set);
+            } else {
+                (0..nz).rev().for_each(&mut set);
+            }
+        }
+    }
+    d
+}
+
+/// `out[z]` = `row` at the neighbour ahead of `z` along z (the previous
+/// entry when `back`, else the next), `u8::MAX` off the row.
+fn shift_ahead(row: &[u8], out: &mut [u8], back: bool) {
+    let n = row.len();
+    if n == 0 {
+        return;
+    }
+    if back {
+        out[0] = u8::MAX;
+        out[1..].copy_from_slice(&row[..n - 1]);
+    } else {
+        out[..n - 1].copy_from_slice(&row[1..]);
+        out[n - 1] = u8::MAX;
+    }
 }
 
 /// In-place chessboard distance transform: cells holding 0 are sources, all
@@ -435,6 +647,101 @@ mod tests {
                 }
             }
         }
+    }
+
+    #[test]
+    fn the_empty_cubes_ahead_are_the_largest_and_hold_no_occupied_cell() {
+        let mut rng = fastrand::Rng::with_seed(14);
+        for case in 0..30 {
+            let count = UVec3::new(rng.u32(1..16), rng.u32(1..16), rng.u32(1..16));
+            let len = (count.x * count.y * count.z) as usize;
+            let density = [0.0, 0.005, 0.03, 0.2][case % 4];
+            let ranges = (0..len)
+                .map(|_| {
+                    if rng.f32() < density {
+                        (1.0, 1.0)
+                    } else {
+                        (0.0, 0.0)
+                    }
+                })
+                .collect();
+            let cells = MacrocellGrid {
+                cell: 4,
+                count,
+                ranges,
+                uniform: vec![false; len],
+            };
+            let skip = SkipGrid::build(&cells, |_, hi| hi > 0.5);
+            let cc_count = skip.coarse_count.as_ivec3();
+            let coarse_occupied = |c: glam::IVec3| {
+                (0..8).any(|k| {
+                    let m = c * 2 + glam::IVec3::new(k & 1, k >> 1 & 1, k >> 2 & 1);
+                    m.cmplt(count.as_ivec3()).all() && skip.is_occupied(m.as_uvec3())
+                })
+            };
+            for octant in 0..8 {
+                let dir = glam::IVec3::new(
+                    1 - 2 * (octant & 1),
+                    1 - 2 * (octant >> 1 & 1),
+                    1 - 2 * (octant >> 2 & 1),
+                );
+                for x in 0..cc_count.x {
+                    for y in 0..cc_count.y {
+                        for z in 0..cc_count.z {
+                            let c = glam::IVec3::new(x, y, z);
+                            // The least chessboard offset of an occupied
+                            // coarse cell ahead (255 when none).
+                            let mut want = 255;
+                            for (i, j, k) in all_below(cc_count) {
+                                let o = (glam::IVec3::new(i, j, k) - c) * dir;
+                                if o.cmpge(glam::IVec3::ZERO).all()
+                                    && coarse_occupied(glam::IVec3::new(i, j, k))
+                                {
+                                    want = want.min(o.max_element());
+                                }
+                            }
+                            let index = ((x * cc_count.y + y) * cc_count.z + z) as usize;
+                            assert_eq!(
+                                skip.ahead_of(octant as usize).sides[index] as i32,
+                                want,
+                                "case {case}, octant {octant}, coarse cell {c}"
+                            );
+                        }
+                    }
+                }
+            }
+            // The boxes handed out hold the point and no occupied cell.
+            for _ in 0..200 {
+                let p = Vec3::new(rng.f32(), rng.f32(), rng.f32()) * count.as_vec3() * 4.0;
+                let octant = rng.usize(0..8);
+                let (c, index) = skip.locate(p);
+                let CellKind::EmptyWithin(b) =
+                    skip.cell_kind_ahead(c, index, skip.ahead_of(octant))
+                else {
+                    continue;
+                };
+                let own = c.as_vec3() * 4.0;
+                assert!(
+                    b.contains(own) && b.contains(own + 4.0),
+                    "{p}: cell outside {b:?}"
+                );
+                for (x, y, z) in all_below(count.as_ivec3()) {
+                    let m = glam::IVec3::new(x, y, z).as_uvec3();
+                    let lo = m.as_vec3() * 4.0;
+                    let inside =
+                        lo.cmplt(b.max).all() && (lo + Vec3::splat(4.0)).cmpgt(b.min).all();
+                    assert!(
+                        !(inside && skip.is_occupied(m)),
+                        "occupied {m} inside {b:?}"
+                    );
+                }
+            }
+        }
+    }
+
+    /// Every `(x, y, z)` below `n`.
+    fn all_below(n: glam::IVec3) -> impl Iterator<Item = (i32, i32, i32)> {
+        (0..n.x).flat_map(move |x| (0..n.y).flat_map(move |y| (0..n.z).map(move |z| (x, y, z))))
     }
 
     #[test]

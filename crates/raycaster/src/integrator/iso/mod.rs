@@ -415,13 +415,14 @@ impl<'v, V: Volume> Search<'v, V> {
             return;
         };
         let fine = skip.iso_cells();
+        let ahead = skip.ahead(ray.inv_dir.into());
         let nudge = ray.nudge;
         let mut t = t0;
         while t < t1 && self.hit.is_none() {
             // Classify the first point past `t`, not `t` itself, which may
             // lie on the face of the box just left.
             let probe = ray.at(t + nudge.min(0.5 * (t1 - t)));
-            let (bounds, occupied) = match skip.classify(probe) {
+            let (bounds, occupied) = match skip.classify_ahead(probe, ahead) {
                 CellClass::Empty(b) => (b, None),
                 CellClass::Occupied {
                     bounds,
