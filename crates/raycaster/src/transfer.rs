@@ -316,6 +316,11 @@ pub struct TfLut {
     keys: Vec<f32>,
     /// Prefix counts of intervals that hold a visible value, for [`TfLut::any_visible`].
     visible_prefix: Vec<u32>,
+    /// Per interval, for its values below and at or above `split`: the
+    /// number of the stretch of values that all look up the same entry
+    /// ([`NOT_CONSTANT`] where the lookup varies), numbered in value order,
+    /// for [`TfLut::constant_over`].
+    pieces: Vec<[u32; 2]>,
     tf: TransferFunction,
     lo: f32,
     scale: f32,
@@ -324,6 +329,9 @@ pub struct TfLut {
     linear: bool,
     step: f32,
 }
+
+/// [`TfLut::pieces`] of values whose lookup varies within the interval.
+const NOT_CONSTANT: u32 = u32::MAX;
 
 /// Entries per table, roughly; the scale is the largest power of two that
 /// keeps the table this small (16 per unit for u8 data).
@@ -392,6 +400,33 @@ impl TfLut {
             count += v as u32;
             visible_prefix.push(count);
         }
+        // Stretches of values with one lookup: an interval continues the
+        // stretch before it when its entry is the same; an exact interval
+        // or a linear one between two different entries varies.
+        let mut pieces = Vec::with_capacity(intervals);
+        let (mut id, mut current) = (0u32, None::<Vec4>);
+        let mut piece = |e: Option<Vec4>| match e {
+            Some(e) if current == Some(e) => id,
+            Some(e) => {
+                id += 1;
+                current = Some(e);
+                id
+            }
+            None => {
+                current = None;
+                NOT_CONSTANT
+            }
+        };
+        for j in 0..intervals {
+            let varies = exact[j] || (linear && entries[j] != entries[j + 1]);
+            let below = piece((!varies).then_some(entries[j]));
+            let above = if split[j].is_finite() {
+                piece(Some(entries[j + 1]))
+            } else {
+                below
+            };
+            pieces.push([below, above]);
+        }
         let entries_len = entries.len();
         TfLut {
             entries,
@@ -399,6 +434,7 @@ impl TfLut {
             split,
             keys,
             visible_prefix,
+            pieces,
             tf: tf.clone(),
             lo,
             scale,
@@ -504,6 +540,19 @@ impl TfLut {
             || self.visible_prefix[b] > self.visible_prefix[a + 1]
     }
 
+    /// True when every value in `[vmin, vmax]` looks up the same entry (so
+    /// [`TfLut::lookup`] of `vmin` is the lookup of any sample a cell of that
+    /// value range gives): unshaded, such a cell composites in closed form.
+    #[inline]
+    pub fn constant_over(&self, vmin: f32, vmax: f32) -> bool {
+        let piece = |v: f32| {
+            let j = Self::index(self.position(v));
+            self.pieces[j][(v >= self.split[j]) as usize]
+        };
+        let a = piece(vmin);
+        a != NOT_CONSTANT && a == piece(vmax)
+    }
+
     /// Colour (not premultiplied) and step-corrected opacity at `v`.
     pub fn color(&self, v: f32) -> (Vec3, f32) {
         let e = self.lookup(v);
@@ -561,6 +610,65 @@ mod tests {
                 }
             }
         }
+    }
+
+    /// A range `constant_over` accepts looks up one entry throughout
+    /// (checked at its ends and many values between, near the TF's points
+    /// above all), and ranges inside one step of a step TF are accepted.
+    #[test]
+    fn constant_ranges_look_up_one_entry() {
+        let mut rng = fastrand::Rng::with_seed(8);
+        let (mut accepted, mut refused) = (0, 0);
+        for name in PRESET_NAMES {
+            for sample_type in [SampleType::U8, SampleType::I16, SampleType::F32] {
+                let tf = TransferFunction::preset(name, sample_type).unwrap();
+                let lut = TfLut::new(&tf, 0.5);
+                let (lo, hi) = tf.value_span();
+                let near = |rng: &mut fastrand::Rng| {
+                    let p = tf.points[rng.usize(..tf.points.len())].value;
+                    p + (rng.f32() - 0.5) * (hi - lo) * 0.05
+                };
+                for _ in 0..2000 {
+                    let (a, b) = match rng.u8(..3) {
+                        0 => (near(&mut rng), near(&mut rng)),
+                        1 => {
+                            let a = near(&mut rng);
+                            (a, a + rng.f32() * (hi - lo) * 1e-3)
+                        }
+                        _ => (
+                            lo - 10.0 + rng.f32() * (hi - lo + 20.0),
+                            lo - 10.0 + rng.f32() * (hi - lo + 20.0),
+                        ),
+                    };
+                    let (a, b) = (a.min(b), a.max(b));
+                    if !lut.constant_over(a, b) {
+                        refused += 1;
+                        continue;
+                    }
+                    accepted += 1;
+                    let e = lut.lookup(a);
+                    for k in 0..=64 {
+                        let v = a + (b - a) * k as f32 / 64.0;
+                        assert_eq!(lut.lookup(v.min(b)), e, "{name}: [{a}, {b}] at {v}");
+                    }
+                    for p in &tf.points {
+                        for v in [p.value, p.value.next_down(), p.value.next_up()] {
+                            if (a..=b).contains(&v) {
+                                assert_eq!(lut.lookup(v), e, "{name}: [{a}, {b}] at {v}");
+                            }
+                        }
+                    }
+                }
+            }
+        }
+        assert!(accepted > 1000 && refused > 1000, "{accepted} / {refused}");
+        // The benchmark's shapes of 92..=95 are red, those of 96..=100 blue.
+        let shapes = TfLut::new(
+            &TransferFunction::preset("shapes", SampleType::U8).unwrap(),
+            0.2,
+        );
+        assert!(shapes.constant_over(92.0, 95.0) && shapes.constant_over(96.0, 100.0));
+        assert!(!shapes.constant_over(95.0, 96.0) && !shapes.constant_over(0.0, 95.0));
     }
 
     #[test]

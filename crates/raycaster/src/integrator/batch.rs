@@ -98,7 +98,7 @@ impl SampleBatch {
                 self.frac[a][l] = f;
             }
         }
-        // The corners two batches ahead are on their way while this one
+        // The corners four batches ahead are on their way while this one
         // works (rays through a large volume miss the cache on most new
         // cells).
         volume.prefetch(seg.pos(k + 4 * LANES as u32));

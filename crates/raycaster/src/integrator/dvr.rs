@@ -39,7 +39,8 @@ impl Integrator for DvrState {
     const OCCUPANCY: Occupancy = Occupancy::Visible;
 
     /// Composites the span's samples front to back; uniform macrocells in
-    /// closed form. Consecutive runs to be marched are marched together (a
+    /// closed form, and, unshaded, those the TF gives one colour without
+    /// sampling them. Consecutive runs to be marched are marched together (a
     /// growing number of samples at a time), so batches stay full across
     /// macrocell boundaries.
     #[inline]
@@ -54,13 +55,21 @@ impl Integrator for DvrState {
         // still keeps its batches full across macrocell boundaries.
         let mut pending = (0u32, 0u32);
         let mut gather = self.gather.max(LANES as u32);
+        // Without shading or gradient opacity a sample's colour depends on
+        // its value alone, so a cell whose value range the TF maps to one
+        // colour needs no sampling either ([`DvrState::composite_constant`]).
+        let by_value = ctx.shading.is_none() && ctx.gradient_opacity.is_none();
         for run in span.runs() {
             let march = match run.kind {
                 RunKind::Empty => false,
                 // A uniform cell's value is constant, its gradient is not
                 // (central differences reach into the neighbours): with
                 // gradient opacity it is marched.
-                RunKind::Cell(i) => !ctx.macrocells.uniform[i] || ctx.gradient_opacity.is_some(),
+                RunKind::Cell(i) => {
+                    let (lo, hi) = ctx.macrocells.ranges[i];
+                    !((ctx.macrocells.uniform[i] && ctx.gradient_opacity.is_none())
+                        || (by_value && ctx.lut.constant_over(lo, hi)))
+                }
                 RunKind::Unknown => true,
             };
             if march && run.start == pending.1 && pending.1 - pending.0 < gather {
@@ -79,8 +88,12 @@ impl Integrator for DvrState {
             if march {
                 pending.1 = run.end;
             } else if let RunKind::Cell(i) = run.kind {
-                let v = ctx.macrocells.ranges[i].0;
-                taken += self.composite_uniform(ctx, v, run.end - run.start, threshold);
+                let (v, n) = (ctx.macrocells.ranges[i].0, run.end - run.start);
+                taken += if ctx.macrocells.uniform[i] && ctx.gradient_opacity.is_none() {
+                    self.composite_uniform(ctx, v, n, threshold)
+                } else {
+                    self.composite_constant(ctx.lut.lookup(v), n, threshold)
+                };
                 if self.terminated {
                     return taken;
                 }
@@ -183,6 +196,36 @@ impl DvrState {
             self.terminated = true;
         }
         count as u64
+    }
+}
+
+impl DvrState {
+    /// Composites `n` samples that all look up as `e` (premultiplied,
+    /// unshaded), one by one with the marching loop's operations in its
+    /// order, so with the same bits and the same ERT sample: what the TF
+    /// makes of a cell can change no pixel between skipping on and off.
+    /// Returns the samples composited.
+    #[inline]
+    fn composite_constant(&mut self, e: Vec4, n: u32, threshold: f32) -> u64 {
+        if e.w <= 0.0 {
+            return n as u64;
+        }
+        let rgb = e.truncate();
+        let (mut color, mut alpha) = (self.color, self.alpha);
+        let mut taken = n as u64;
+        for i in 0..n {
+            let w = 1.0 - alpha;
+            color += w * rgb;
+            alpha += w * e.w;
+            if alpha >= threshold {
+                self.terminated = true;
+                taken = i as u64 + 1;
+                break;
+            }
+        }
+        self.color = color;
+        self.alpha = alpha;
+        taken
     }
 }
 
