@@ -9,6 +9,7 @@ use common::rays::{RayLab, random_ray};
 use common::scenes::{opts, render, u8_volume};
 use glam::{UVec3, Vec3};
 use raycaster::geometry::Ray;
+use raycaster::integrator::Phong;
 use raycaster::prelude::*;
 
 /// ESS must change nothing: single rays integrated with and
@@ -58,6 +59,56 @@ fn ess_changes_nothing_on_single_rays() {
         skipped * 8 > total,
         "ESS skipped only {skipped} of {total} samples"
     );
+}
+
+/// Blocks of one value (uniform macrocells inside) and blocks of two values
+/// the `shapes` TF gives one colour (92 and 94 red, 97 and 100 blue) side
+/// by side: macrocells whose samples are composited without being taken.
+/// With ESS on, which finds those cells, single rays still end in states
+/// bit-identical to marching every sample, shaded and unshaded. (A closed
+/// form `T·(1 − α)ⁿ` for those runs does not.)
+#[test]
+fn cells_composited_without_sampling_give_the_marched_bits() {
+    let blocks = |v: UVec3| -> u8 {
+        let inside = |lo: u32, hi: u32, c: u32| (lo..hi).contains(&c);
+        if inside(4, 20, v.x) && inside(4, 30, v.y) && inside(6, 30, v.z) {
+            if v.x < 12 { 92 } else { 94 }
+        } else if inside(24, 44, v.x) && inside(8, 36, v.y) && inside(4, 24, v.z) {
+            if v.y < 20 { 97 } else { 100 }
+        } else {
+            0
+        }
+    };
+    let grid = Grid::new(UVec3::new(48, 40, 36), Vec3::ONE);
+    let scene = Scene::new(AnyVolume::from_fn(grid, blocks));
+    let tf = TransferFunction::preset("shapes", SampleType::U8).unwrap();
+    let mut rng = fastrand::Rng::with_seed(21);
+    let (lo, hi) = (grid.bounds().min, grid.bounds().max);
+    for shaded in [false, true] {
+        for step in [0.3f32, 0.7] {
+            let lab = RayLab::dvr(&scene, &tf, step);
+            let lab = if shaded {
+                lab.shaded(Phong::default())
+            } else {
+                lab
+            };
+            let mut seen = 0;
+            for i in 0..1500 {
+                let ray = random_ray(&mut rng, lo, hi, i % 4 == 0);
+                let Some((off, _)) = lab.dvr_state(&ray, false) else {
+                    continue;
+                };
+                let (on, _) = lab.dvr_state(&ray, true).unwrap();
+                assert_eq!(
+                    (off.color, off.alpha, off.terminated),
+                    (on.color, on.alpha, on.terminated),
+                    "shaded {shaded} step {step}: DVR differs with ESS on {ray:?}"
+                );
+                seen += (off.alpha > 0.5) as u32;
+            }
+            assert!(seen > 300, "only {seen} rays met the blocks");
+        }
+    }
 }
 
 /// Whole images: ESS on/off identical; ERT on/off within what the

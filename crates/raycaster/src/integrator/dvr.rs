@@ -38,9 +38,11 @@ impl Integrator for DvrState {
 
     const OCCUPANCY: Occupancy = Occupancy::Visible;
 
-    /// Composites the span's samples front to back; uniform macrocells in
-    /// closed form, and, unshaded, those the TF gives one colour without
-    /// sampling them. Consecutive runs to be marched are marched together (a
+    /// Composites the span's samples front to back. The samples of a
+    /// macrocell that all look up one TF entry are composited without being
+    /// taken ([`DvrState::composite_constant`]): a uniform cell's, and,
+    /// unshaded, those of a cell whose value range the TF maps to one
+    /// colour. Consecutive runs to be marched are marched together (a
     /// growing number of samples at a time), so batches stay full across
     /// macrocell boundaries.
     #[inline]
@@ -57,14 +59,15 @@ impl Integrator for DvrState {
         let mut gather = self.gather.max(LANES as u32);
         // Without shading or gradient opacity a sample's colour depends on
         // its value alone, so a cell whose value range the TF maps to one
-        // colour needs no sampling either ([`DvrState::composite_constant`]).
+        // colour needs no sampling either.
         let by_value = ctx.shading.is_none() && ctx.gradient_opacity.is_none();
         for run in span.runs() {
             let march = match run.kind {
                 RunKind::Empty => false,
-                // A uniform cell's value is constant, its gradient is not
-                // (central differences reach into the neighbours): with
-                // gradient opacity it is marched.
+                // A uniform cell's value is constant and its gradient zero
+                // (its neighbours hold the same value), which leaves the
+                // colour unshaded; gradient opacity weighs the opacity by
+                // that gradient, so then it is marched.
                 RunKind::Cell(i) => {
                     let (lo, hi) = ctx.macrocells.ranges[i];
                     !((ctx.macrocells.uniform[i] && ctx.gradient_opacity.is_none())
@@ -88,12 +91,8 @@ impl Integrator for DvrState {
             if march {
                 pending.1 = run.end;
             } else if let RunKind::Cell(i) = run.kind {
-                let (v, n) = (ctx.macrocells.ranges[i].0, run.end - run.start);
-                taken += if ctx.macrocells.uniform[i] && ctx.gradient_opacity.is_none() {
-                    self.composite_uniform(ctx, v, n, threshold)
-                } else {
-                    self.composite_constant(ctx.lut.lookup(v), n, threshold)
-                };
+                let v = ctx.macrocells.ranges[i].0;
+                taken += self.composite_constant(ctx.lut.lookup(v), run.end - run.start, threshold);
                 if self.terminated {
                     return taken;
                 }
@@ -159,52 +158,13 @@ impl DvrState {
         }
     }
 
-    /// Composites `n` samples of the constant value `v` in closed form: with
-    /// transmittance `T = 1 − A` and `β = 1 − α`, after `n` samples
-    /// `T' = T·βⁿ` and `C' = C + c·(T − T')/α` (c premultiplied). With ERT the
-    /// run stops at the first sample whose `A` reaches the threshold, as the
-    /// sample-by-sample loop would. Returns the samples composited.
-    #[inline]
-    fn composite_uniform<V: Volume>(
-        &mut self,
-        ctx: &FrameContext<'_, V>,
-        v: f32,
-        n: u32,
-        threshold: f32,
-    ) -> u64 {
-        let e = ctx.lut.lookup(v);
-        if e.w <= 0.0 || n == 0 {
-            return n as u64;
-        }
-        let t0 = 1.0 - self.alpha;
-        let beta = 1.0 - e.w;
-        let mut count = n;
-        if threshold <= 1.0 {
-            // Smallest i with 1 − T·βⁱ >= threshold.
-            let stop = if beta <= 0.0 {
-                1
-            } else {
-                let i = ((1.0 - threshold) / t0).ln() / beta.ln();
-                (i.ceil().max(1.0) as u32).max(1)
-            };
-            count = count.min(stop);
-        }
-        let t1 = t0 * super::shading::powi(beta, count as i32);
-        self.color += e.truncate() * ((t0 - t1) / e.w);
-        self.alpha = 1.0 - t1;
-        if self.alpha >= threshold || count < n {
-            self.terminated = true;
-        }
-        count as u64
-    }
-}
-
-impl DvrState {
     /// Composites `n` samples that all look up as `e` (premultiplied,
     /// unshaded), one by one with the marching loop's operations in its
-    /// order, so with the same bits and the same ERT sample: what the TF
-    /// makes of a cell can change no pixel between skipping on and off.
-    /// Returns the samples composited.
+    /// order, so with the same bits and the same ERT sample: skipping on and
+    /// off give the same pixels (SPEC §5). A closed form (`T·(1 − α)ⁿ`, with
+    /// a logarithm for the ERT sample) moved pixels by a level and was not
+    /// faster on runs the length of a macrocell. Returns the samples
+    /// composited.
     #[inline]
     fn composite_constant(&mut self, e: Vec4, n: u32, threshold: f32) -> u64 {
         if e.w <= 0.0 {
