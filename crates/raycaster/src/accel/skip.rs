@@ -50,7 +50,9 @@ pub(crate) enum CellKind {
 /// cells of 2×2×2 macrocells, holding for each coarse cell 0 when any of its
 /// macrocells is occupied, otherwise the Chebyshev distance (in coarse cells,
 /// capped at 255) to the nearest coarse cell that is. Occupancy stays fine,
-/// the distance field costs an eighth as much to build.
+/// the distance field costs an eighth as much to build. Rays jump by a
+/// third level, built per direction octant on first use
+/// ([`SkipGrid::ahead`]): the empty cube ahead of each coarse cell.
 #[derive(Debug, Clone)]
 pub struct SkipGrid {
     cell: f32,
