@@ -542,7 +542,8 @@ impl TfLut {
 
     /// True when every value in `[vmin, vmax]` looks up the same entry (so
     /// [`TfLut::lookup`] of `vmin` is the lookup of any sample a cell of that
-    /// value range gives): unshaded, such a cell composites in closed form.
+    /// value range gives): unshaded, such a cell is composited without
+    /// sampling it.
     #[inline]
     pub fn constant_over(&self, vmin: f32, vmax: f32) -> bool {
         let piece = |v: f32| {
