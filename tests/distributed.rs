@@ -615,3 +615,51 @@ fn a_missing_file_is_one_line_naming_it() {
     .to_string();
     assert!(err.contains("nope.vol") && !err.contains('\n'), "{err}");
 }
+
+/// Shadow and reflection rays of the iso mode would cross other ranks'
+/// parts: asked for, a distributed frame is a one-line error naming the
+/// option, not a wrong picture.
+#[test]
+fn iso_shadows_and_reflections_are_refused_with_parts() {
+    let dir = TempDir::new("dist-iso-rays");
+    let path = dir.join("phantom.vol");
+    vol::write(
+        &path,
+        &phantom_volume([21, 19, 17], Vec3::ONE),
+        VolLayout::Linear,
+    )
+    .unwrap();
+    let file = PartFile::open(&path, ReadPolicy::Part).unwrap();
+    let grid = file.grid();
+    let partition =
+        Partition::kd(grid.dims, grid.spacing, 2, &CellWeights::voxels(grid.dims)).unwrap();
+    let (_, camera) = cameras(&grid).remove(0);
+    let iso = RenderOptions {
+        mode: RenderMode::Iso,
+        iso_value: 100.0,
+        ..RenderOptions::default()
+    };
+    render_in_process(&file, &partition, &camera, &soft_tf(), &iso, 2).expect("plain iso");
+    for (name, options) in [
+        (
+            "shadows",
+            RenderOptions {
+                shadows: true,
+                ..iso.clone()
+            },
+        ),
+        (
+            "reflection",
+            RenderOptions {
+                reflection: 0.5,
+                ..iso.clone()
+            },
+        ),
+    ] {
+        let err = render_in_process(&file, &partition, &camera, &soft_tf(), &options, 2)
+            .err()
+            .unwrap_or_else(|| panic!("{name}: rendered"))
+            .to_string();
+        assert!(err.contains(name) && !err.contains('\n'), "{err}");
+    }
+}

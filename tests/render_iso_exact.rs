@@ -346,6 +346,98 @@ fn a_spheres_shadow_falls_under_it() {
     );
 }
 
+/// A mirror floor (`--reflection 1`, unshaded) shows the sphere exactly
+/// where the floor's mirrored ray meets it and the background elsewhere,
+/// away from a band around the reflection's rim and the crease where the
+/// sphere's field meets the floor's; lit and shadowed, every renderer
+/// agrees.
+#[test]
+fn a_mirror_floor_shows_the_sphere_where_the_reflected_ray_meets_it() {
+    let s = SphereOnPlane::new();
+    let scene = s.scene();
+    let tf = white();
+    let mut cam = Camera::look_at(
+        Vec3::new(24.0, 22.0, 75.0),
+        Vec3::new(24.0, 8.0, 24.0),
+        120,
+        100,
+    );
+    cam.fov_y_deg = 45.0;
+    let frame_cam = cam.frame().expect("camera");
+    let background = Vec3::new(0.2, 0.4, 0.6);
+    let o = RenderOptions {
+        shading: false,
+        reflection: 1.0,
+        background,
+        ..lit_options(vec![], false)
+    };
+    let mirror = render(&scene, &cam, &tf, &o);
+    let bg = background.to_array().map(|c| (c * 255.0).round() as u8);
+    let (mut sphere, mut sky) = (0, 0);
+    for j in 0..cam.height {
+        for i in 0..cam.width {
+            let ray = frame_cam.ray(i, j);
+            let oc = ray.origin - s.centre;
+            let b = oc.dot(ray.dir);
+            if b * b - (oc.length_squared() - s.radius * s.radius) > -1.0 {
+                continue; // on or near the sphere itself
+            }
+            let t = (s.floor - ray.origin.y) / ray.dir.y;
+            let q = ray.at(t);
+            let inside_box = q.x > 1.0 && q.x < 47.0 && q.z > 1.0 && q.z < 47.0;
+            if !(t > 0.0 && inside_box) || (q - s.centre).length() - s.radius < 3.0 {
+                continue;
+            }
+            // The mirrored ray from the floor point.
+            let r = Vec3::new(ray.dir.x, -ray.dir.y, ray.dir.z);
+            let qc = q - s.centre;
+            let b = qc.dot(r);
+            let disc = b * b - (qc.length_squared() - s.radius * s.radius);
+            let at = ((j * cam.width + i) * 3) as usize;
+            let px = [mirror.rgb[at], mirror.rgb[at + 1], mirror.rgb[at + 2]];
+            if disc > 1.0 && b < 0.0 {
+                assert_eq!(px, [255; 3], "pixel {i},{j}: the sphere's reflection");
+                sphere += 1;
+            } else if disc < -1.0 {
+                assert_eq!(px, bg, "pixel {i},{j}: the background's reflection");
+                sky += 1;
+            }
+        }
+    }
+    assert!(
+        sphere > 50 && sky > 1000,
+        "{sphere} sphere, {sky} sky pixels"
+    );
+    // Lit and shadowed, every renderer gives the same image.
+    let lit = RenderOptions {
+        reflection: 0.4,
+        background,
+        ..lit_options(vec![Vec3::new(0.3, 1.0, 0.2)], true)
+    };
+    let serial = render(&scene, &cam, &tf, &lit);
+    let mut object = RendererKind::Object.renderer(2).expect("object");
+    let f = object.render(&scene, &cam, &tf, &lit).expect("render");
+    let d = common::compare_images(&serial.rgb, &f.rgb, 0);
+    assert_eq!(d.over, 0, "object differs from serial: {d}");
+    // The reflection shows: the lit image differs from the one without.
+    let plain = lit_options(vec![Vec3::new(0.3, 1.0, 0.2)], true);
+    let d = common::compare_images(&serial.rgb, &render(&scene, &cam, &tf, &plain).rgb, 8);
+    assert!(d.over > 1000, "the reflection changes too little: {d}");
+    // Out of range is an error naming the option.
+    let err = SerialRenderer::new()
+        .render(
+            &scene,
+            &cam,
+            &tf,
+            &RenderOptions {
+                reflection: 1.5,
+                ..plain
+            },
+        )
+        .expect_err("a reflection above 1 must be refused");
+    assert!(err.to_string().contains("reflection"), "{err}");
+}
+
 #[test]
 fn bad_lights_are_errors() {
     let s = SphereOnPlane::new();

@@ -114,6 +114,8 @@ impl<'a> RayLab<'a> {
                     iso_value: lab.iso,
                     lights: &lab.lights,
                     shadows: lab.shadows,
+                    reflection: 0.0,
+                    background: Vec3::ZERO,
                     light_proxies: &[],
                     iso_normals: Default::default(),
                     avg_norm: 255.0,

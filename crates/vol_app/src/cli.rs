@@ -426,6 +426,11 @@ pub struct RenderArgs {
     /// every hit.
     #[arg(long, value_enum, default_value_t = Switch::Off)]
     pub shadows: Switch,
+    /// --mode iso: one mirror bounce; K (0..1) is the share of each hit's
+    /// colour that the ray reflected about the normal sees (the surface,
+    /// lit and shadowed as the primary hits are, or the background). 0 = off.
+    #[arg(long, value_name = "K", default_value_t = 0.0)]
+    pub reflection: f32,
     /// --mode iso: how the surface normal is found.
     #[arg(long, value_enum, default_value_t = IsoNormals::Gradient)]
     pub normals: IsoNormals,

@@ -374,6 +374,7 @@ pub fn render_options(args: &RenderArgs, (lo, hi): (f32, f32)) -> Result<RenderO
         iso_value: args.iso.unwrap_or(0.5 * (lo + hi)),
         lights: args.lights.clone(),
         shadows: args.shadows.on(),
+        reflection: args.reflection,
         iso_normals: args.normals,
         background: args.background,
         clip: raycaster::clip::Clip {

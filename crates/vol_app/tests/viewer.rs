@@ -456,6 +456,25 @@ fn iso_shadows_and_lights_reach_the_renderer() {
     settle(&mut h);
     assert_eq!(opts(&h).iso_normals, Default::default());
 
+    // The reflection slider reaches the renderer and changes the picture.
+    assert_eq!(opts(&h).reflection, 0.0);
+    h.get_by_role_and_label(egui::accesskit::Role::Slider, "Reflection")
+        .set_value_accesskit(0.5);
+    h.step();
+    settle(&mut h);
+    assert_eq!(opts(&h).reflection, 0.5);
+    assert!(frame_is_current(app(&h)));
+    assert_ne!(
+        app(&h).last_frame().unwrap().frame.rgb,
+        headlit,
+        "the reflection changed nothing"
+    );
+    h.get_by_role_and_label(egui::accesskit::Role::Slider, "Reflection")
+        .set_value_accesskit(0.0);
+    h.step();
+    settle(&mut h);
+    assert_eq!(opts(&h).reflection, 0.0);
+
     h.get_by_label("Shadows").click();
     h.get_by_label("Add light").click();
     h.step();

@@ -246,6 +246,12 @@ impl PartRenderer {
                 "shadow rays cross other ranks' parts: not available with --distributed",
             ));
         }
+        if options.reflection > 0.0 && options.mode == RenderMode::Iso {
+            return Err(Error::option(
+                "reflection",
+                "reflection rays cross other ranks' parts: not available with --distributed",
+            ));
+        }
         let mut options = options.clone();
         options.step = Some(options.step_for(&part.whole));
         let plan = FramePlan::new(&mut self.cache, &part.scene, camera, tf, &options)?;

@@ -272,6 +272,12 @@ pub struct FrameContext<'a, V: Volume> {
     pub lights: &'a [Vec3],
     /// Shadow rays towards each light ([`RenderMode::Iso`]).
     pub shadows: bool,
+    /// The share of a hit's colour seen in the mirror direction
+    /// ([`RenderMode::Iso`]; 0 = no reflection rays).
+    pub reflection: f32,
+    /// The background colour (what a reflection ray that leaves the
+    /// volume sees).
+    pub background: Vec3,
     /// Per light of [`FrameContext::lights`] (or none at all): how far
     /// its shadow rays can meet a cell that can hold the surface, which
     /// ends their walks early (`None`: walk to the volume's edge).

@@ -30,6 +30,11 @@ pub struct RenderOptions {
     pub lights: Vec<Vec3>,
     /// Shadow rays towards each light in [`RenderMode::Iso`].
     pub shadows: bool,
+    /// One mirror bounce in [`RenderMode::Iso`]: the share (0..1) of a
+    /// hit's colour that is what the ray reflected about the surface's
+    /// normal sees (the surface lit as the primary hit is, shadows
+    /// included, or the background), the rest the hit's own; 0 = off.
+    pub reflection: f32,
     /// How [`RenderMode::Iso`] finds its normals.
     pub iso_normals: IsoNormals,
     /// Background colour, 0..1.
@@ -59,6 +64,7 @@ impl Default for RenderOptions {
             iso_value: 128.0,
             lights: Vec::new(),
             shadows: false,
+            reflection: 0.0,
             iso_normals: IsoNormals::Gradient,
             background: Vec3::ZERO,
             clip: Clip::default(),

@@ -244,6 +244,12 @@ impl FramePlan {
             }
             lights.push(unit);
         }
+        if !(0.0..=1.0).contains(&options.reflection) {
+            return Err(Error::option(
+                "reflection",
+                format!("{} must be in [0, 1]", options.reflection),
+            ));
+        }
         options.clip.validate()?;
         if let Some(go) = options.gradient_opacity
             && !(go.g0.is_finite() && go.g1.is_finite() && go.g0 < go.g1)
@@ -337,6 +343,8 @@ impl FramePlan {
             iso_value: options.iso_value,
             lights: &self.lights,
             shadows: options.shadows,
+            reflection: options.reflection,
+            background: options.background,
             light_proxies: &self.light_proxies,
             iso_normals: options.iso_normals,
             avg_norm: <V::Sample as crate::sample::Sample>::TYPE.max_value(),

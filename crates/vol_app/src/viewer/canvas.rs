@@ -167,6 +167,7 @@ impl ViewerApp {
                 iso_value: s.iso_value,
                 lights: s.light_directions(),
                 shadows: s.shadows,
+                reflection: s.reflection,
                 iso_normals: s.iso_normals,
                 clip: s.clip.clip(&volume.scene.grid().bounds()),
                 gradient_opacity: s.clip.gradient_opacity(),

@@ -390,6 +390,13 @@ fn metaballs_editor(
 fn lights_editor(ui: &mut Ui, s: &mut Settings, iso: bool) -> bool {
     ui.checkbox(&mut s.shadows, "Shadows")
         .on_hover_text("Cast a shadow ray towards each light from every surface hit");
+    if iso {
+        ui.add(egui::Slider::new(&mut s.reflection, 0.0..=1.0).text("Reflection"))
+            .on_hover_text(
+                "One mirror bounce: the share of each hit's colour that the ray \
+                 reflected about the normal sees (0 = off)",
+            );
+    }
     let mut analytic = s.iso_normals == IsoNormals::Analytic;
     if iso
         && ui

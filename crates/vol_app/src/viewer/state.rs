@@ -320,6 +320,9 @@ pub struct Settings {
     pub lights: Vec<LightAngles>,
     /// Shadow rays towards each light in [`RenderMode::Iso`].
     pub shadows: bool,
+    /// The share of each hit's colour seen in the mirror direction in
+    /// [`RenderMode::Iso`] (`--reflection`; 0 = off).
+    pub reflection: f32,
     /// How [`RenderMode::Iso`] finds its normals (`--normals`).
     pub iso_normals: raycaster::integrator::IsoNormals,
     /// Phong shading.
@@ -366,6 +369,7 @@ impl Default for Settings {
             iso_value: 100.0,
             lights: Vec::new(),
             shadows: false,
+            reflection: 0.0,
             iso_normals: Default::default(),
             shading: true,
             // The viewer's default so far; the library's (and `vol_app
@@ -441,6 +445,11 @@ impl Settings {
         if !self.iso_value.is_finite() {
             self.iso_value = defaults.iso_value;
         }
+        self.reflection = if self.reflection.is_finite() {
+            self.reflection.clamp(0.0, 1.0)
+        } else {
+            defaults.reflection
+        };
         self.lights.truncate(MAX_LIGHTS);
         for l in &mut self.lights {
             *l = l.repaired();
@@ -595,9 +604,20 @@ mod tests {
         };
         let r = Settings {
             lights: vec![bad; MAX_LIGHTS + 2],
+            reflection: 3.0,
             ..s
         }
         .repaired();
+        assert_eq!(r.reflection, 1.0);
+        assert_eq!(
+            Settings {
+                reflection: f32::NAN,
+                ..Settings::default()
+            }
+            .repaired()
+            .reflection,
+            0.0
+        );
         assert_eq!(r.lights.len(), MAX_LIGHTS);
         assert_eq!(r.lights[0].azimuth, LightAngles::default().azimuth);
         assert_eq!(r.lights[0].elevation, 90.0);

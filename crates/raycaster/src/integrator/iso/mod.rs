@@ -88,6 +88,8 @@ pub struct IsoState {
 pub struct ShadingCache {
     colour: Option<Vec3>,
     gradients: GradientCache,
+    /// The same for the surface reflection rays meet.
+    reflected: GradientCache,
     shadow_rays: [Option<VoxelRay>; CACHED_LIGHTS],
 }
 
@@ -173,54 +175,127 @@ impl Integrator for IsoState {
         let c = *cache
             .colour
             .get_or_insert_with(|| ctx.tf.evaluate(ctx.iso_value).truncate());
-        let rgb = match &ctx.shading {
-            Some(ph) => {
-                let g = match ctx.iso_normals {
-                    IsoNormals::Gradient => cache.gradients.gradient(ctx.volume, hit.pos.into()),
-                    IsoNormals::Analytic => {
-                        let corners = ctx.volume.corners(hit.cell);
-                        trilinear_derivative(&corners, Vec3::from(hit.pos) - hit.cell.as_vec3())
-                            / ctx.volume.grid().spacing
-                    }
-                };
-                let len = g.length();
-                if len > 0.0 && len.is_finite() {
-                    // Two-sided: the normal faces the camera.
-                    let view = -hit.world_dir;
-                    let n = g / len;
-                    let n = if n.dot(view) < 0.0 { -n } else { n };
-                    let headlight = [view];
-                    let lights = if ctx.lights.is_empty() {
-                        &headlight[..]
-                    } else {
-                        ctx.lights
-                    };
-                    let mut rgb = c * ph.ka;
-                    for (k, &l) in lights.iter().enumerate() {
-                        let ndotl = n.dot(l);
-                        if ndotl <= 0.0
-                            || (ctx.shadows
-                                && in_shadow(
-                                    ctx,
-                                    hit.pos.into(),
-                                    n,
-                                    (l, k),
-                                    &mut cache.shadow_rays,
-                                ))
-                        {
-                            continue;
-                        }
-                        let (diffuse, spec) = ph.light(n, l, view);
-                        rgb += c * diffuse + Vec3::splat(spec);
-                    }
-                    rgb
-                } else {
-                    c * ph.ka
-                }
-            }
-            None => c,
+        let reflects = ctx.reflection > 0.0;
+        let n = if ctx.shading.is_some() || reflects {
+            normal(ctx, &hit, &mut cache.gradients)
+        } else {
+            None
         };
+        let mut rgb = lit(ctx, c, &hit, n, &mut cache.shadow_rays);
+        if reflects && let Some(n) = n {
+            let k = ctx.reflection;
+            rgb = rgb * (1.0 - k) + mirror(ctx, c, &hit, n, cache) * k;
+        }
         rgb.extend(1.0)
+    }
+}
+
+/// The unit world normal at `hit`, facing where its ray came from (the
+/// surface is two-sided); `None` where the gradient vanishes.
+#[inline(always)]
+fn normal<V: Volume>(
+    ctx: &FrameContext<'_, V>,
+    hit: &IsoHit,
+    gradients: &mut GradientCache,
+) -> Option<Vec3> {
+    let g = match ctx.iso_normals {
+        IsoNormals::Gradient => gradients.gradient(ctx.volume, hit.pos.into()),
+        IsoNormals::Analytic => {
+            let corners = ctx.volume.corners(hit.cell);
+            trilinear_derivative(&corners, Vec3::from(hit.pos) - hit.cell.as_vec3())
+                / ctx.volume.grid().spacing
+        }
+    };
+    let len = g.length();
+    if len > 0.0 && len.is_finite() {
+        let view = -hit.world_dir;
+        let n = g / len;
+        Some(if n.dot(view) < 0.0 { -n } else { n })
+    } else {
+        None
+    }
+}
+
+/// The colour `c` of the surface at `hit` with normal `n`: lit by the
+/// frame's lights (Phong, shadow rays when asked) when shading is on, only
+/// ambient where there is no normal.
+#[inline(always)]
+fn lit<V: Volume>(
+    ctx: &FrameContext<'_, V>,
+    c: Vec3,
+    hit: &IsoHit,
+    n: Option<Vec3>,
+    shadow_rays: &mut [Option<VoxelRay>; CACHED_LIGHTS],
+) -> Vec3 {
+    let Some(ph) = &ctx.shading else {
+        return c;
+    };
+    let Some(n) = n else {
+        return c * ph.ka;
+    };
+    let view = -hit.world_dir;
+    let headlight = [view];
+    let lights = if ctx.lights.is_empty() {
+        &headlight[..]
+    } else {
+        ctx.lights
+    };
+    let mut rgb = c * ph.ka;
+    for (k, &l) in lights.iter().enumerate() {
+        let ndotl = n.dot(l);
+        if ndotl <= 0.0 || (ctx.shadows && in_shadow(ctx, hit.pos.into(), n, (l, k), shadow_rays)) {
+            continue;
+        }
+        let (diffuse, spec) = ph.light(n, l, view);
+        rgb += c * diffuse + Vec3::splat(spec);
+    }
+    rgb
+}
+
+/// What the ray of `hit` sees reflected about the normal `n` there: the
+/// surface where the reflected ray first crosses the iso value, lit as
+/// [`lit`] lights a primary hit, or the background where it leaves the
+/// volume. One bounce: the surface it meets is not reflective. (Out of
+/// line: frames without reflection should not carry its code.)
+#[inline(never)]
+fn mirror<V: Volume>(
+    ctx: &FrameContext<'_, V>,
+    c: Vec3,
+    hit: &IsoHit,
+    n: Vec3,
+    cache: &mut ShadingCache,
+) -> Vec3 {
+    let d = hit.world_dir;
+    let r = (d - n * (2.0 * d.dot(n))).normalize_or_zero();
+    if r == Vec3::ZERO {
+        return ctx.background;
+    }
+    let grid = ctx.volume.grid();
+    // Leave the surface along the normal first (as a shadow ray does), so
+    // that the reflected ray does not find the surface it leaves.
+    let normal_vox = (n / grid.spacing).normalize_or_zero();
+    let ray = VoxelRay::new(
+        Vec3::from(hit.pos) + normal_vox * SHADOW_OFFSET,
+        r / grid.spacing,
+    );
+    let t1 = Aabb::new(Vec3::ZERO, grid.max_coord()).exit(ray.origin, ray.inv_dir);
+    if t1.is_nan() || t1 <= 0.0 {
+        return ctx.background;
+    }
+    let mut search = Search::new(ctx.volume, ctx.iso_value, None);
+    search.walk(ctx.ess.then_some(ctx.skip), &ray, 0.0, t1);
+    match search.hit {
+        Some((t, cell)) => {
+            let seen = IsoHit {
+                t,
+                pos: ray.at(t).into(),
+                cell,
+                world_dir: r,
+            };
+            let n = normal(ctx, &seen, &mut cache.reflected);
+            lit(ctx, c, &seen, n, &mut cache.shadow_rays)
+        }
+        None => ctx.background,
     }
 }
 
