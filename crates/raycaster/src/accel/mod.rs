@@ -22,3 +22,28 @@ pub use iso_cells::{CellMasks, IsoCells};
 pub use macrocell::MacrocellGrid;
 pub use runs::{RunKind, SampleRun, SkipRuns};
 pub use skip::{Ahead, CellClass, SkipGrid};
+
+/// For tests: macrocells of side 4, `count` of them per axis, each occupied
+/// (value range 1..1, else 0..0) with probability `density`.
+#[cfg(test)]
+pub(crate) fn random_macrocells(
+    rng: &mut fastrand::Rng,
+    count: glam::UVec3,
+    density: f32,
+) -> MacrocellGrid {
+    let len = (count.x * count.y * count.z) as usize;
+    MacrocellGrid {
+        cell: 4,
+        count,
+        ranges: (0..len)
+            .map(|_| {
+                if rng.f32() < density {
+                    (1.0, 1.0)
+                } else {
+                    (0.0, 0.0)
+                }
+            })
+            .collect(),
+        uniform: vec![false; len],
+    }
+}

@@ -232,7 +232,6 @@ mod tests {
     use glam::Vec3;
 
     use super::*;
-    use crate::accel::MacrocellGrid;
     use crate::accel::skip::CellClass;
     use crate::geometry::Ray;
     use crate::volume::Grid;
@@ -273,23 +272,8 @@ mod tests {
         let mut rng = fastrand::Rng::with_seed(31);
         for case in 0..24 {
             let count = UVec3::new(rng.u32(1..14), rng.u32(1..14), rng.u32(1..14));
-            let len = (count.x * count.y * count.z) as usize;
             let density = [0.02, 0.1, 0.4][case % 3];
-            let ranges = (0..len)
-                .map(|_| {
-                    if rng.f32() < density {
-                        (1.0, 1.0)
-                    } else {
-                        (0.0, 0.0)
-                    }
-                })
-                .collect();
-            let cells = MacrocellGrid {
-                cell: 4,
-                count,
-                ranges,
-                uniform: vec![false; len],
-            };
+            let cells = crate::accel::random_macrocells(&mut rng, count, density);
             let skip = SkipGrid::build(&cells, |_, hi| hi > 0.5);
             let grid = Grid::new(count * 4 + UVec3::ONE, Vec3::new(1.0, 0.7, 1.3));
             let size = grid.bounds().max;

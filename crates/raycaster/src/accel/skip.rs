@@ -610,22 +610,7 @@ mod tests {
         let mut rng = fastrand::Rng::with_seed(12);
         for _ in 0..20 {
             let count = UVec3::new(rng.u32(1..12), rng.u32(1..12), rng.u32(1..12));
-            let len = (count.x * count.y * count.z) as usize;
-            let ranges = (0..len)
-                .map(|_| {
-                    if rng.f32() < 0.03 {
-                        (1.0, 1.0)
-                    } else {
-                        (0.0, 0.0)
-                    }
-                })
-                .collect();
-            let cells = MacrocellGrid {
-                cell: 4,
-                count,
-                ranges,
-                uniform: vec![false; len],
-            };
+            let cells = crate::accel::random_macrocells(&mut rng, count, 0.03);
             let skip = SkipGrid::build(&cells, |_, hi| hi > 0.5);
             for _ in 0..300 {
                 let p = Vec3::new(rng.f32(), rng.f32(), rng.f32()) * count.as_vec3() * 4.0;
@@ -656,23 +641,8 @@ mod tests {
         let mut rng = fastrand::Rng::with_seed(14);
         for case in 0..30 {
             let count = UVec3::new(rng.u32(1..16), rng.u32(1..16), rng.u32(1..16));
-            let len = (count.x * count.y * count.z) as usize;
             let density = [0.0, 0.005, 0.03, 0.2][case % 4];
-            let ranges = (0..len)
-                .map(|_| {
-                    if rng.f32() < density {
-                        (1.0, 1.0)
-                    } else {
-                        (0.0, 0.0)
-                    }
-                })
-                .collect();
-            let cells = MacrocellGrid {
-                cell: 4,
-                count,
-                ranges,
-                uniform: vec![false; len],
-            };
+            let cells = crate::accel::random_macrocells(&mut rng, count, density);
             let skip = SkipGrid::build(&cells, |_, hi| hi > 0.5);
             let cc_count = skip.coarse_count.as_ivec3();
             let coarse_occupied = |c: glam::IVec3| {

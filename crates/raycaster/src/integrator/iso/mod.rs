@@ -30,7 +30,7 @@ use glam::{IVec3, UVec3, Vec3, Vec3A, Vec4};
 use super::{Fragment, FrameContext, Integrator, Occupancy, Span};
 use crate::accel::{CellClass, CellMasks, IsoCells, SkipGrid};
 use crate::geometry::Aabb;
-use crate::volume::{Corners, GradientCache, Volume};
+use crate::volume::{Corners, GradientCache, Grid, Volume};
 
 /// How an isosurface's normal is found at a hit.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default, serde::Serialize, serde::Deserialize)]
@@ -271,20 +271,9 @@ fn mirror<V: Volume>(
         return ctx.background;
     }
     let grid = ctx.volume.grid();
-    // Leave the surface along the normal first (as a shadow ray does), so
-    // that the reflected ray does not find the surface it leaves.
-    let normal_vox = (n / grid.spacing).normalize_or_zero();
-    let ray = VoxelRay::new(
-        Vec3::from(hit.pos) + normal_vox * SHADOW_OFFSET,
-        r / grid.spacing,
-    );
+    let ray = VoxelRay::new(off_surface(grid, hit.pos.into(), n), r / grid.spacing);
     let t1 = Aabb::new(Vec3::ZERO, grid.max_coord()).exit(ray.origin, ray.inv_dir);
-    if t1.is_nan() || t1 <= 0.0 {
-        return ctx.background;
-    }
-    let mut search = Search::new(ctx.volume, ctx.iso_value, None);
-    search.walk(ctx.ess.then_some(ctx.skip), &ray, 0.0, t1);
-    match search.hit {
+    match secondary_hit(ctx, &ray, t1) {
         Some((t, cell)) => {
             let seen = IsoHit {
                 t,
@@ -325,10 +314,7 @@ fn in_shadow<V: Volume>(
     rays: &mut [Option<VoxelRay>; CACHED_LIGHTS],
 ) -> bool {
     let grid = ctx.volume.grid();
-    // Leave the surface along the normal first: a shadow ray that started
-    // on the surface could find the surface itself (shadow acne).
-    let normal_vox = (n / grid.spacing).normalize_or_zero();
-    let origin = p + normal_vox * SHADOW_OFFSET;
+    let origin = off_surface(grid, p, n);
     let towards_light = || VoxelRay::new(Vec3::ZERO, l / grid.spacing);
     let ray = VoxelRay {
         origin: origin.into(),
@@ -344,15 +330,37 @@ fn in_shadow<V: Volume>(
         // there is nothing to find.
         t1 = t1.min(proxy.reach(grid.voxel_to_world(origin)));
     }
-    if t1.is_nan() || t1 <= 0.0 {
-        return false;
-    }
-    let mut search = Search::new(ctx.volume, ctx.iso_value, None);
-    search.walk(ctx.ess.then_some(ctx.skip), &ray, 0.0, t1);
-    search.hit.is_some()
+    secondary_hit(ctx, &ray, t1).is_some()
 }
 
-/// How far (voxels) a shadow ray starts from the surface, along the normal.
+/// Where a ray leaving the surface point `p` (voxel space) with world
+/// normal `n` starts (shadow and reflection rays): [`SHADOW_OFFSET`] voxels
+/// off the surface along the normal, since a ray that started on the
+/// surface could find the surface itself (shadow acne).
+#[inline]
+fn off_surface(grid: &Grid, p: Vec3, n: Vec3) -> Vec3 {
+    let normal_vox = (n / grid.spacing).normalize_or_zero();
+    p + normal_vox * SHADOW_OFFSET
+}
+
+/// The first crossing along a ray leaving the surface, on `[0, t1]`
+/// (`None` for an empty interval).
+#[inline]
+fn secondary_hit<V: Volume>(
+    ctx: &FrameContext<'_, V>,
+    ray: &VoxelRay,
+    t1: f32,
+) -> Option<(f32, UVec3)> {
+    if t1.is_nan() || t1 <= 0.0 {
+        return None;
+    }
+    let mut search = Search::new(ctx.volume, ctx.iso_value, None);
+    search.walk(ctx.ess.then_some(ctx.skip), ray, 0.0, t1);
+    search.hit
+}
+
+/// How far (voxels) a shadow or reflection ray starts from the surface,
+/// along the normal.
 const SHADOW_OFFSET: f32 = 0.05;
 
 /// A ray in voxel space, `origin + dir·t`, with what its walk needs.
