@@ -26,6 +26,7 @@ pub use avg::AvgState;
 pub use dvr::DvrState;
 pub use fragment::Fragment;
 pub use iso::{CellCubic, IsoHit, IsoNormals, IsoState, ShadingCache};
+pub(crate) use iso::{PACKET_H, PACKET_W};
 
 pub use mip::{Extremum, Max, Min, MinipState, MipState, ProjectionState};
 pub use none::NoSamples;
@@ -215,6 +216,27 @@ pub trait Integrator: Copy + Default + Send + Sync + std::fmt::Debug + 'static {
 
     /// Integrates the samples of `span`; returns how many were taken.
     fn integrate<V: Volume>(&mut self, span: Span<'_, V>) -> u64;
+
+    /// Whether the tile loop hands this integrator the whole rays of
+    /// neighbouring pixels together ([`Integrator::integrate_packet`]).
+    const PACKETS: bool = false;
+
+    /// Integrates the whole rays `segs` of neighbouring pixels (at most a
+    /// block of 4×2), one into each of `rays`; returns the samples taken.
+    /// Each ray must come out as [`Integrator::integrate`] of its whole
+    /// span would leave it, whichever rays it is handed with. This default
+    /// integrates them one by one.
+    #[inline(always)]
+    fn integrate_packet<V: Volume>(
+        ctx: &FrameContext<'_, V>,
+        rays: &mut [Self],
+        segs: &[RaySegment],
+    ) -> u64 {
+        rays.iter_mut()
+            .zip(segs)
+            .map(|(ray, seg)| ray.integrate(Span::whole(ctx, seg)))
+            .sum()
+    }
 
     /// True when nothing more can change this ray (ERT, a hit).
     fn is_done(&self) -> bool {

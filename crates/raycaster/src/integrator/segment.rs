@@ -31,7 +31,7 @@ pub fn jitter(i: u32, j: u32, seed: u32) -> f32 {
 
 /// One ray prepared for marching through a volume: in voxel space, with its
 /// sample index range.
-#[derive(Debug, Clone, Copy)]
+#[derive(Debug, Clone, Copy, Default)]
 pub struct RaySegment {
     /// Ray origin in voxel space.
     pub origin: Vec3,

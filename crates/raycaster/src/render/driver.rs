@@ -14,7 +14,9 @@ use super::plan::{FramePlan, PlanCache, RenderOptions};
 use super::{Cancel, Frame, FrameStats, Renderer};
 use crate::camera::{Camera, PixelRect};
 use crate::error::Result;
-use crate::integrator::{FrameContext, Integrator, IntegratorVisitor, RaySegment, Span, jitter};
+use crate::integrator::{
+    FrameContext, Integrator, IntegratorVisitor, PACKET_H, PACKET_W, RaySegment, Span, jitter,
+};
 use crate::scene::Scene;
 use crate::transfer::TransferFunction;
 use crate::volume::{Volume, VolumeVisitor};
@@ -312,6 +314,9 @@ pub(crate) fn render_tile<V: Volume, I: Integrator>(
     let mut counts = RayCounts::default();
     let mut scratch = I::Scratch::default();
     let all_enter = job.plan.proxy.is_some() && job.all_enter(rect);
+    if I::PACKETS {
+        return render_tile_packets::<V, I>(job, film, rect, all_enter);
+    }
     for j in rect.y0..rect.y1 {
         for i in rect.x0..rect.x1 {
             let px = match job.pixel_in(i, j, all_enter) {
@@ -331,6 +336,63 @@ pub(crate) fn render_tile<V: Volume, I: Integrator>(
                 }
             };
             rgb.extend_from_slice(&px);
+        }
+    }
+    film.add_counts(counts);
+    (rgb, samples)
+}
+
+/// [`render_tile`] for an integrator that takes the rays of blocks of
+/// [`PACKET_W`]×[`PACKET_H`] pixels together
+/// ([`Integrator::integrate_packet`]); the pixels come out as one by one.
+fn render_tile_packets<V: Volume, I: Integrator>(
+    job: &FrameJob<'_, V>,
+    film: &Film,
+    rect: &PixelRect,
+    all_enter: bool,
+) -> (Vec<u8>, u64) {
+    const N: usize = (PACKET_W * PACKET_H) as usize;
+    let width = rect.x1 - rect.x0;
+    let mut rgb = vec![0u8; 3 * rect.area() as usize];
+    let mut samples = 0;
+    let mut counts = RayCounts::default();
+    let mut scratch = I::Scratch::default();
+    let background = film.background_rgb();
+    let put = |rgb: &mut [u8], i: u32, j: u32, px: [u8; 3]| {
+        let at = 3 * ((j - rect.y0) * width + (i - rect.x0)) as usize;
+        rgb[at..at + 3].copy_from_slice(&px);
+    };
+    for by in (rect.y0..rect.y1).step_by(PACKET_H as usize) {
+        for bx in (rect.x0..rect.x1).step_by(PACKET_W as usize) {
+            let mut segs = [RaySegment::default(); N];
+            let mut pixels = [(0u32, 0u32); N];
+            let mut n = 0;
+            for j in by..(by + PACKET_H).min(rect.y1) {
+                for i in bx..(bx + PACKET_W).min(rect.x1) {
+                    match job.pixel_in(i, j, all_enter) {
+                        PixelRay::Misses => put(&mut rgb, i, j, background),
+                        PixelRay::Culled(_) => {
+                            counts.entered += 1;
+                            put(&mut rgb, i, j, background);
+                        }
+                        PixelRay::Searched(seg) => {
+                            segs[n] = seg;
+                            pixels[n] = (i, j);
+                            n += 1;
+                        }
+                    }
+                }
+            }
+            if n == 0 {
+                continue;
+            }
+            let mut rays = [I::default(); N];
+            samples += I::integrate_packet(&job.ctx, &mut rays[..n], &segs[..n]);
+            for (ray, &(i, j)) in rays[..n].iter().zip(&pixels[..n]) {
+                let c = ray.resolve_in(&job.ctx, &mut scratch);
+                counts.add(c);
+                put(&mut rgb, i, j, film.composite(c));
+            }
         }
     }
     film.add_counts(counts);

@@ -27,10 +27,18 @@ pub struct CellCubic {
 }
 
 impl CellCubic {
+    /// `g = 0`: a placeholder.
+    pub const ZERO: CellCubic = CellCubic {
+        a: 0.0,
+        b: 0.0,
+        c: 0.0,
+        d: 0.0,
+    };
+
     /// The cubic of cell `corners` for the ray that is at fractions `p0`
     /// inside the cell at `t = 0` and moves by `dir` (cell units per unit of
     /// `t`), minus `iso`.
-    #[inline]
+    #[inline(always)]
     pub fn new(corners: &Corners, p0: Vec3, dir: Vec3, iso: f32) -> Self {
         // Each fraction is u(t) = p0 + dir·t, and 1 − u(t) = (1 − p0) − dir·t.
         // Interpolating along x, then y, then z with these linear weights
@@ -147,7 +155,7 @@ impl CellCubic {
     /// evaluation of `g` there can land on the other side. False means "not
     /// proven", and the extrema decide, as before.
     #[inline(always)]
-    fn stays_on(&self, side: bool, len: f32) -> bool {
+    pub(super) fn stays_on(&self, side: bool, len: f32) -> bool {
         // Power coefficients on u = t/len ∈ [0, 1]: d + p1·u + p2·u² + p3·u³.
         let p1 = self.c * len;
         let p2 = self.b * len * len;

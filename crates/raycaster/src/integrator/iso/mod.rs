@@ -22,12 +22,14 @@
 //! The same walk answers shadow rays, from the hit towards each light.
 
 mod crossing;
+mod packet;
 
 pub use crossing::CellCubic;
+pub(crate) use packet::{PACKET_H, PACKET_W};
 
 use glam::{IVec3, UVec3, Vec3, Vec3A, Vec4};
 
-use super::{Fragment, FrameContext, Integrator, Occupancy, Span};
+use super::{Fragment, FrameContext, Integrator, Occupancy, RaySegment, Span};
 use crate::accel::{CellClass, CellMasks, IsoCells, SkipGrid};
 use crate::geometry::Aabb;
 use crate::volume::{Corners, GradientCache, Grid, Volume};
@@ -141,6 +143,61 @@ impl Integrator for IsoState {
             });
         }
         search.steps
+    }
+
+    const PACKETS: bool = true;
+
+    /// Walks the rays together ([`packet`]) when the frame has the
+    /// two-level structure to walk: the same hits as one by one. A block
+    /// with one ray to search goes the same way, so that a ray's count of
+    /// cells visited does not depend on how a renderer cut the image.
+    fn integrate_packet<V: Volume>(
+        ctx: &FrameContext<'_, V>,
+        rays: &mut [Self],
+        segs: &[RaySegment],
+    ) -> u64 {
+        let fine = ctx.skip.iso_cells().filter(|_| ctx.ess);
+        let Some(fine) = fine.filter(|_| segs.len() <= packet::PACKET) else {
+            return rays
+                .iter_mut()
+                .zip(segs)
+                .map(|(ray, seg)| ray.integrate(Span::whole(ctx, seg)))
+                .sum();
+        };
+        let mut lanes = [packet::PacketRay::EMPTY; packet::PACKET];
+        for (lane, seg) in lanes.iter_mut().zip(segs) {
+            *lane = packet::PacketRay {
+                ray: VoxelRay::with_inverse(seg.origin, seg.dir, seg.inv_dir),
+                // A whole span: from the box's (or the proxy's) entry to the
+                // exit; nothing at all for a ray clipping left empty.
+                t0: seg.t_in,
+                t1: if seg.is_empty() { f32::NAN } else { seg.t_out },
+            };
+        }
+        let n = segs.len();
+        let mut found = [packet::PacketHit::default(); packet::PACKET];
+        packet::search_packet(
+            ctx.volume,
+            ctx.skip,
+            fine,
+            ctx.iso_value,
+            &lanes[..n],
+            &mut found[..n],
+        );
+        let mut steps = 0;
+        for ((ray, seg), (lane, f)) in rays.iter_mut().zip(segs).zip(lanes.iter().zip(&found)) {
+            *ray = IsoState {
+                side: f.side,
+                hit: f.hit.map(|(t, cell)| IsoHit {
+                    t,
+                    pos: lane.ray.at(t).into(),
+                    cell,
+                    world_dir: seg.world_dir,
+                }),
+            };
+            steps += f.steps;
+        }
+        steps
     }
 
     fn is_done(&self) -> bool {
@@ -384,6 +441,16 @@ pub(crate) struct VoxelRay {
 }
 
 impl VoxelRay {
+    /// A placeholder: along +x from the origin.
+    pub const AXIS_X: VoxelRay = VoxelRay {
+        origin: Vec3A::ZERO,
+        dir: Vec3A::X,
+        inv_dir: Vec3A::X,
+        step: IVec3::X,
+        nudge: 1e-4,
+        tol: 1e-5,
+    };
+
     pub fn new(origin: Vec3, dir: Vec3) -> Self {
         Self::with_inverse(origin, dir, dir.recip())
     }

@@ -1,0 +1,598 @@
+//! Packets of neighbouring primary rays walked together, slice by slice
+//! (the seed thesis's coherent grid traversal, §3.3.3, cut down to the
+//! few rays of a 4×2 pixel block).
+//!
+//! Neighbouring pixels' rays pass through nearly the same cells. Instead of
+//! a DDA per ray, the packet visits the grid in slices of cells across the
+//! rays' major axis; in each slice it takes the rectangle of cells any of
+//! its rays passes through, looks each cell up once in the two-level
+//! occupancy structure, and loads the corners of each straddling cell once
+//! for all rays. Each ray then solves only in the straddling cells it
+//! actually crosses, with the walk's own arithmetic: the cell's entry and
+//! exit are its planes' parameters, computed from their coordinates as the
+//! DDA computes them, and the crossing is [`CellCubic`]'s. A ray's first
+//! crossing is the earliest one in the first slice that has any (the
+//! slices are ordered along every ray of the packet).
+//!
+//! What a ray finds depends on that ray alone, never on its packet: it
+//! tests exactly the straddling cells it crosses, in the slices of its own
+//! window ([`WINDOW`] slices from its start), and a ray not done by then
+//! goes on alone with the scalar [`Search`] from the end of its window. So
+//! every renderer, however it cuts the image into tiles, gives the same
+//! image. The side of the iso value a ray is on is fixed until its hit: it
+//! is taken where the ray starts, and a straddling cell the ray enters on
+//! the other side (a crossing in a sliver between cells) is a hit at the
+//! cell's entry, as in the scalar walk.
+
+use glam::{IVec3, UVec3, Vec3};
+
+use super::{CellCubic, Search, VoxelRay};
+use crate::accel::{IsoCells, SkipGrid};
+use crate::simd::{self, Isa, Kernel};
+use crate::volume::Volume;
+
+/// Rays per packet: a block of 4×2 pixels.
+pub(crate) const PACKET: usize = 8;
+
+/// Pixels per packet along a row and along a column.
+pub(crate) const PACKET_W: u32 = 4;
+pub(crate) const PACKET_H: u32 = 2;
+
+/// How many slices a ray is walked in its packet before it goes on alone.
+/// Primary rays start at their proxy depth, a cell or so before the
+/// surface: most hit within a few slices, and the rays that graze the
+/// silhouette and miss are better served by the scalar walk's empty-space
+/// skipping than by a packet stepping slice after slice.
+const WINDOW: i32 = 12;
+
+/// How far (cells) past the rays' extent in a slice the rectangle of cells
+/// reaches: far beyond the rounding of a position, so that a ray grazing
+/// a cell's edge still finds the cell in the rectangle.
+const RECT_MARGIN: f32 = 1e-3;
+
+/// One ray of a packet: the whole part of it to search.
+#[derive(Debug, Clone, Copy)]
+pub(crate) struct PacketRay {
+    pub ray: VoxelRay,
+    pub t0: f32,
+    pub t1: f32,
+}
+
+impl PacketRay {
+    /// A placeholder for an unused lane.
+    pub const EMPTY: PacketRay = PacketRay {
+        ray: VoxelRay::AXIS_X,
+        t0: f32::NAN,
+        t1: f32::NAN,
+    };
+}
+
+/// What the search of one ray found: as [`Search`] reports it.
+#[derive(Debug, Clone, Copy, Default)]
+pub(crate) struct PacketHit {
+    pub hit: Option<(f32, UVec3)>,
+    pub side: Option<bool>,
+    pub steps: u64,
+}
+
+/// Searches the rays of `rays` (at most [`PACKET`]) for their first
+/// crossings of `iso` through the occupancy structure `skip` (with its fine
+/// level `fine`), into `out` (one per ray).
+pub(crate) fn search_packet<V: Volume>(
+    volume: &V,
+    skip: &SkipGrid,
+    fine: &IsoCells,
+    iso: f32,
+    rays: &[PacketRay],
+    out: &mut [PacketHit],
+) {
+    debug_assert!(rays.len() <= PACKET && out.len() == rays.len());
+    // Rays are grouped by major axis and direction along it; a ray with a
+    // zero direction component goes alone (its slab test would need the
+    // scalar walk's care for ±0).
+    let mut left: u32 = (1 << rays.len()) - 1;
+    while left != 0 {
+        let first = left.trailing_zeros() as usize;
+        let Some(key) = axis_of(&rays[first].ray) else {
+            out[first] = alone(volume, skip, iso, &rays[first], None);
+            left &= !(1 << first);
+            continue;
+        };
+        let mut group = 0u32;
+        for (l, r) in rays.iter().enumerate() {
+            if left & (1 << l) != 0 && axis_of(&r.ray) == Some(key) {
+                group |= 1 << l;
+            }
+        }
+        left &= !group;
+        simd::dispatch(Group {
+            volume,
+            skip,
+            fine,
+            iso,
+            rays,
+            group,
+            key,
+            out: &mut *out,
+        });
+    }
+}
+
+/// [`walk_group`] as a [`Kernel`]: its lane-wise loops compiled 8 wide
+/// where the CPU has AVX2.
+struct Group<'a, V: Volume> {
+    volume: &'a V,
+    skip: &'a SkipGrid,
+    fine: &'a IsoCells,
+    iso: f32,
+    rays: &'a [PacketRay],
+    group: u32,
+    key: (usize, i32),
+    out: &'a mut [PacketHit],
+}
+
+impl<V: Volume> Kernel for Group<'_, V> {
+    type Output = ();
+
+    #[inline(always)]
+    fn run<I: Isa>(self, _isa: I) {
+        walk_group(
+            self.volume,
+            self.skip,
+            self.fine,
+            self.iso,
+            self.rays,
+            self.group,
+            self.key,
+            self.out,
+        );
+    }
+}
+
+/// A ray's major axis and its step along it, `None` when a direction
+/// component is zero.
+#[inline]
+fn axis_of(ray: &VoxelRay) -> Option<(usize, i32)> {
+    let d = Vec3::from(ray.dir);
+    if d.x == 0.0 || d.y == 0.0 || d.z == 0.0 || !d.is_finite() {
+        return None;
+    }
+    let a = d.abs();
+    let k = if a.x >= a.y && a.x >= a.z {
+        0
+    } else if a.y >= a.z {
+        1
+    } else {
+        2
+    };
+    Some((k, if d[k] > 0.0 { 1 } else { -1 }))
+}
+
+/// The scalar walk of one ray from `t` (its side there known or not).
+fn alone<V: Volume>(
+    volume: &V,
+    skip: &SkipGrid,
+    iso: f32,
+    r: &PacketRay,
+    side: Option<bool>,
+) -> PacketHit {
+    let mut search = Search::new(volume, iso, side);
+    search.walk(Some(skip), &r.ray, r.t0, r.t1);
+    PacketHit {
+        hit: search.hit,
+        side: search.side,
+        steps: search.steps,
+    }
+}
+
+/// The lanes of one packet group, structure of arrays.
+struct Lanes {
+    o: [[f32; PACKET]; 3],
+    d: [[f32; PACKET]; 3],
+    inv: [[f32; PACKET]; 3],
+    /// Per axis, 0 or 1: the offset of a cell's near plane from its lower
+    /// corner along the lane (1 when the lane runs backwards), and of its
+    /// far plane.
+    near: [[f32; PACKET]; 3],
+    far: [[f32; PACKET]; 3],
+    t0: [f32; PACKET],
+    t1: [f32; PACKET],
+}
+
+impl Lanes {
+    /// Where lane `l` enters and leaves the cell with lower corner `c`
+    /// (clipped to the lane's part to search; entry after exit when it
+    /// misses the cell): the cell's planes' parameters, computed as the
+    /// DDA computes them.
+    #[inline(always)]
+    fn span_in(&self, l: usize, c: Vec3) -> (f32, f32) {
+        let mut tn = self.t0[l];
+        let mut tf = self.t1[l];
+        for a in 0..3 {
+            let near = (c[a] + self.near[a][l] - self.o[a][l]) * self.inv[a][l];
+            let far = (c[a] + self.far[a][l] - self.o[a][l]) * self.inv[a][l];
+            // (No NaN here: no direction component is 0.)
+            tn = if near > tn { near } else { tn };
+            tf = if far < tf { far } else { tf };
+        }
+        (tn, tf)
+    }
+}
+
+/// Walks the rays `group` (a bit set over `rays`), which share major axis
+/// and direction `(k, step)`.
+#[allow(clippy::too_many_arguments)]
+#[inline(always)]
+fn walk_group<V: Volume>(
+    volume: &V,
+    skip: &SkipGrid,
+    fine: &IsoCells,
+    iso: f32,
+    rays: &[PacketRay],
+    group: u32,
+    (k, step): (usize, i32),
+    out: &mut [PacketHit],
+) {
+    let dims = volume.grid().dims;
+    let last = (dims.max(UVec3::splat(2)) - UVec3::splat(2)).as_ivec3();
+    let (u, v) = ((k + 1) % 3, (k + 2) % 3);
+    let mut lanes = Lanes {
+        o: [[0.0; PACKET]; 3],
+        d: [[0.0; PACKET]; 3],
+        inv: [[0.0; PACKET]; 3],
+        near: [[0.0; PACKET]; 3],
+        far: [[0.0; PACKET]; 3],
+        // Lanes outside the group cross nothing: an empty interval.
+        t0: [f32::INFINITY; PACKET],
+        t1: [f32::NEG_INFINITY; PACKET],
+    };
+    let m = fine.side() as i32;
+    // The macrocell of a cell by a shift where the side allows.
+    let shift = (m as u32)
+        .is_power_of_two()
+        .then(|| IVec3::splat(m.trailing_zeros() as i32));
+    let count = fine.count().as_ivec3();
+    let stride = IVec3::new(count.y * count.z, count.z, 1);
+    // A cell's bit sets and its place in them; `None` in an empty
+    // macrocell.
+    let masks_of = |cell: IVec3| {
+        let mc = match shift {
+            Some(sh) => cell >> sh,
+            None => cell / m,
+        };
+        let index = (mc * stride).element_sum() as usize;
+        fine.masks(index)
+            .map(|masks| (masks, (cell - mc * m).as_uvec3()))
+    };
+    // Per lane: its side, its window of slices [start, end) (in steps
+    // along k), and whether it is still searching.
+    let mut side = [false; PACKET];
+    let mut side_bits = 0u32;
+    let mut start = [0i32; PACKET];
+    let mut active = 0u32;
+    for (l, r) in rays.iter().enumerate() {
+        if group & (1 << l) == 0 {
+            continue;
+        }
+        for a in 0..3 {
+            lanes.o[a][l] = r.ray.origin[a];
+            lanes.d[a][l] = r.ray.dir[a];
+            lanes.inv[a][l] = r.ray.inv_dir[a];
+            let back = (r.ray.dir[a] < 0.0) as u32 as f32;
+            lanes.near[a][l] = back;
+            lanes.far[a][l] = 1.0 - back;
+        }
+        lanes.t0[l] = r.t0;
+        lanes.t1[l] = r.t1;
+        out[l] = PacketHit::default();
+        if r.t0.is_nan() || r.t1.is_nan() || r.t0 >= r.t1 {
+            continue;
+        }
+        // The cell the walk starts in, and the side of the iso value there:
+        // the cell's, as the walk takes it, when the cell lies on one side;
+        // else the cubic's value at the start, as the walk computes it.
+        let probe = r.ray.at(r.t0 + r.ray.nudge.min(0.5 * (r.t1 - r.t0)));
+        let cell = probe.floor().as_ivec3().clamp(IVec3::ZERO, last);
+        side[l] = match masks_of(cell) {
+            Some((masks, local)) if !masks.straddles(local) => masks.above(local),
+            _ => {
+                let corners = volume.corners(cell.as_uvec3());
+                let p0 = r.ray.at(r.t0) - cell.as_vec3();
+                CellCubic::new(&corners, p0, r.ray.dir.into(), iso).eval(0.0) >= 0.0
+            }
+        };
+        side_bits |= (side[l] as u32) << l;
+        out[l].side = Some(side[l]);
+        out[l].steps = 1;
+        start[l] = cell[k];
+        active |= 1 << l;
+    }
+    if active == 0 {
+        return;
+    }
+    // Slices from the earliest start along the step to the latest window's
+    // end.
+    let lanes_of = |mask: u32| (0..PACKET).filter(move |l| mask & (1 << l) != 0);
+    let mut s = lanes_of(active).map(|l| start[l] * step).min().unwrap_or(0) * step;
+    while active != 0 {
+        if s < 0 || s > last[k] {
+            // Past the grid: the lanes still searching end without a hit.
+            break;
+        }
+        // The lanes whose window holds slice `s`, their extent across it.
+        let (near, far) = if step > 0 {
+            (s as f32, (s + 1) as f32)
+        } else {
+            ((s + 1) as f32, s as f32)
+        };
+        let mut in_slice = 0u32;
+        let (mut lo_u, mut hi_u, mut lo_v, mut hi_v) = (
+            f32::INFINITY,
+            f32::NEG_INFINITY,
+            f32::INFINITY,
+            f32::NEG_INFINITY,
+        );
+        let mut ta = [0.0f32; PACKET];
+        let mut tb = [0.0f32; PACKET];
+        for l in lanes_of(active) {
+            let into = (s - start[l]) * step;
+            if into < 0 {
+                continue;
+            }
+            let a = ((near - lanes.o[k][l]) * lanes.inv[k][l]).max(lanes.t0[l]);
+            let b = ((far - lanes.o[k][l]) * lanes.inv[k][l]).min(lanes.t1[l]);
+            ta[l] = a;
+            tb[l] = b;
+            if a > b {
+                continue;
+            }
+            in_slice |= 1 << l;
+            for t in [a, b] {
+                let pu = lanes.o[u][l] + lanes.d[u][l] * t;
+                let pv = lanes.o[v][l] + lanes.d[v][l] * t;
+                lo_u = lo_u.min(pu);
+                hi_u = hi_u.max(pu);
+                lo_v = lo_v.min(pv);
+                hi_v = hi_v.max(pv);
+            }
+        }
+        // The earliest crossing per lane in this slice, and the entry of
+        // the cell it lies in (ties go to the cell entered first).
+        let mut best = [(f32::INFINITY, f32::INFINITY, UVec3::ZERO); PACKET];
+        if in_slice != 0 {
+            let cu0 = ((lo_u - RECT_MARGIN).floor() as i32).max(0);
+            let cu1 = ((hi_u + RECT_MARGIN).floor() as i32).min(last[u]);
+            let cv0 = ((lo_v - RECT_MARGIN).floor() as i32).max(0);
+            let cv1 = ((hi_v + RECT_MARGIN).floor() as i32).min(last[v]);
+            let mut cell = IVec3::ZERO;
+            cell[k] = s;
+            for cu in cu0..=cu1 {
+                cell[u] = cu;
+                for cv in cv0..=cv1 {
+                    cell[v] = cv;
+                    let Some((masks, local)) = masks_of(cell) else {
+                        continue;
+                    };
+                    if !masks.straddles(local) {
+                        // A cell wholly on one side: a hit at its entry for
+                        // a lane arriving from the other side (a crossing
+                        // on the face between cells, or in a sliver the
+                        // lane grazed), as in the walk.
+                        let against = in_slice
+                            & if masks.above(local) {
+                                !side_bits
+                            } else {
+                                side_bits
+                            };
+                        for l in lanes_of(against) {
+                            let (tc, te) = lanes.span_in(l, cell.as_vec3());
+                            if tc <= te && tc < best[l].0 {
+                                best[l] = (tc, tc, cell.as_uvec3());
+                            }
+                        }
+                        continue;
+                    }
+                    let corners = volume.corners(cell.as_uvec3());
+                    // The cell's entry and exit along each lane: its planes'
+                    // parameters, as the DDA computes them (lane-wise, so
+                    // that the compiler can vectorise it).
+                    let c = cell.as_vec3();
+                    let mut tc = [0.0f32; PACKET];
+                    let mut te = [0.0f32; PACKET];
+                    let mut crosses = [false; PACKET];
+                    for l in 0..PACKET {
+                        let (tn, tf) = lanes.span_in(l, c);
+                        tc[l] = tn;
+                        te[l] = if tn > tf { tn } else { tf };
+                        crosses[l] = tn <= tf && tn < best[l].0;
+                    }
+                    // Each lane's cubic in the cell, and whether it is proven
+                    // to stay on the lane's side throughout (most cells a ray
+                    // passes clip the surface's cell without a crossing).
+                    let mut cubic = [CellCubic::ZERO; PACKET];
+                    let mut proven = [false; PACKET];
+                    for l in 0..PACKET {
+                        let origin = Vec3::new(lanes.o[0][l], lanes.o[1][l], lanes.o[2][l]);
+                        let dir = Vec3::new(lanes.d[0][l], lanes.d[1][l], lanes.d[2][l]);
+                        let p0 = origin + dir * tc[l] - c;
+                        cubic[l] = CellCubic::new(&corners, p0, dir, iso);
+                        proven[l] = cubic[l].stays_on(side[l], te[l] - tc[l]);
+                    }
+                    for l in lanes_of(in_slice) {
+                        if !crosses[l] {
+                            continue;
+                        }
+                        out[l].steps += 1;
+                        if proven[l] {
+                            continue;
+                        }
+                        let (tc, te, cubic) = (tc[l], te[l], cubic[l]);
+                        let hit = if (cubic.eval(0.0) >= 0.0) != side[l] {
+                            Some(tc)
+                        } else {
+                            let tol = rays[l].ray.tol;
+                            cubic.first_crossing(te - tc, tol).map(|dt| tc + dt)
+                        };
+                        if let Some(t) = hit
+                            && (t, tc) < (best[l].0, best[l].1)
+                        {
+                            best[l] = (t, tc, cell.as_uvec3());
+                        }
+                    }
+                }
+            }
+        }
+        for l in lanes_of(active) {
+            let into = (s - start[l]) * step;
+            if into < 0 {
+                continue;
+            }
+            if best[l].0.is_finite() {
+                out[l].hit = Some((best[l].0, best[l].2));
+                active &= !(1 << l);
+            } else if tb[l] >= lanes.t1[l] || ta[l] > tb[l] {
+                // Left the part to search: no crossing.
+                active &= !(1 << l);
+            } else if into + 1 >= WINDOW {
+                let resumed = PacketRay {
+                    t0: tb[l],
+                    ..rays[l]
+                };
+                let steps = out[l].steps;
+                out[l] = alone(volume, skip, iso, &resumed, Some(side[l]));
+                out[l].steps += steps;
+                active &= !(1 << l);
+            }
+        }
+        s += step;
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::accel::MacrocellGrid;
+    use crate::geometry::{Aabb, Ray};
+    use crate::volume::{AnyVolume, Grid, VolumeVisitor};
+
+    /// A sphere's distance field with ripples (a surface that bends inside
+    /// cells, so that rays cross it twice in some) over a floor that lies
+    /// exactly on a plane of cell faces (where a crossing falls between
+    /// cells), and its two-level structure for iso value 6.
+    fn rippled_sphere() -> (AnyVolume, SkipGrid) {
+        let grid = Grid::new(UVec3::new(23, 19, 26), Vec3::ONE);
+        let centre = Vec3::new(11.0, 10.0, 12.5);
+        let volume = AnyVolume::from_fn(grid, |v| {
+            let d = v.as_vec3() - centre;
+            let sphere = d.length() + 1.5 * (0.9 * d.x).sin() * (0.7 * d.y).cos();
+            sphere.min(v.y as f32 - 3.0 + ISO)
+        });
+        let cells = MacrocellGrid::build_any(&volume, 4, None);
+        let skip = SkipGrid::for_iso(&volume, &cells, ISO);
+        (volume, skip)
+    }
+
+    const ISO: f32 = 6.0;
+
+    /// A ray from `origin` towards `target` clipped to `grid`'s box, `None`
+    /// when it misses.
+    fn packet_ray(grid: &Grid, origin: Vec3, target: Vec3) -> Option<PacketRay> {
+        let dir = target - origin;
+        let (t0, t1) = Aabb::new(Vec3::ZERO, grid.max_coord()).intersect(&Ray { origin, dir })?;
+        Some(PacketRay {
+            ray: VoxelRay::new(origin, dir),
+            t0,
+            t1,
+        })
+    }
+
+    /// Packets of random rays: coherent ones (an eye outside or inside the
+    /// volume looking at a small patch, as neighbouring pixels do), mixed
+    /// ones with different major axes, and rays with a zero direction
+    /// component.
+    fn random_packets(grid: &Grid, rng: &mut fastrand::Rng, n: usize) -> Vec<Vec<PacketRay>> {
+        let size = grid.max_coord();
+        let point = |rng: &mut fastrand::Rng, lo: f32, hi: f32| {
+            Vec3::new(rng.f32(), rng.f32(), rng.f32()) * (hi - lo) * size + lo * size
+        };
+        let mut packets = Vec::new();
+        while packets.len() < n {
+            let kind = rng.u32(0..4);
+            let eye = if kind == 3 {
+                point(rng, 0.1, 0.9)
+            } else {
+                point(rng, -0.8, 1.8)
+            };
+            let patch = point(rng, 0.2, 0.8);
+            let spread = [0.05, 0.3, 8.0, 0.3][kind as usize];
+            let rays: Vec<PacketRay> = (0..rng.usize(1..=PACKET))
+                .filter_map(|_| {
+                    let mut target =
+                        patch + (Vec3::new(rng.f32(), rng.f32(), rng.f32()) - 0.5) * spread;
+                    let mut origin = eye;
+                    if rng.u32(0..8) == 0 {
+                        // Along a plane of cells: one direction component 0.
+                        let a = rng.usize(0..3);
+                        origin[a] = origin[a].round();
+                        target[a] = origin[a];
+                    }
+                    packet_ray(grid, origin, target)
+                })
+                .collect();
+            if !rays.is_empty() {
+                packets.push(rays);
+            }
+        }
+        packets
+    }
+
+    struct Check<'a> {
+        skip: &'a SkipGrid,
+    }
+
+    impl VolumeVisitor for Check<'_> {
+        type Output = ();
+        fn visit<V: Volume>(self, volume: &V) {
+            let skip = self.skip;
+            let fine = skip.iso_cells().unwrap();
+            let mut rng = fastrand::Rng::with_seed(12);
+            let (mut hits, mut handed_on) = (0, 0);
+            for rays in random_packets(volume.grid(), &mut rng, 3000) {
+                let mut out = [PacketHit::default(); PACKET];
+                search_packet(volume, skip, fine, ISO, &rays, &mut out[..rays.len()]);
+                for (l, r) in rays.iter().enumerate() {
+                    // The scalar walk's hit, to the bit.
+                    let mut search = Search::new(volume, ISO, None);
+                    search.walk(Some(skip), &r.ray, r.t0, r.t1);
+                    assert_eq!(out[l].hit, search.hit, "ray {r:?}");
+                    hits += search.hit.is_some() as u32;
+                    // Rays whose search spans more slices than a window go
+                    // on alone.
+                    if let Some((k, _)) = axis_of(&r.ray) {
+                        let end = search.hit.map_or(r.t1, |(t, _)| t);
+                        let slices = r.ray.at(end)[k].floor() - r.ray.at(r.t0)[k].floor();
+                        handed_on += (slices.abs() >= WINDOW as f32) as u32;
+                    }
+                    // The same alone as in its packet.
+                    let mut alone = [PacketHit::default()];
+                    search_packet(volume, skip, fine, ISO, std::slice::from_ref(r), &mut alone);
+                    assert_eq!(alone[0].hit, out[l].hit);
+                    assert_eq!(alone[0].steps, out[l].steps);
+                }
+            }
+            // The rays hit often, and some walk past their packet's window.
+            assert!(hits > 3000, "{hits}");
+            assert!(handed_on > 0);
+        }
+    }
+
+    /// Every ray of a packet finds exactly the crossing the scalar walk
+    /// finds, and the same as when it is searched alone: what a ray finds
+    /// does not depend on the rays it is searched with, so every renderer
+    /// (which cut the image into different blocks) gives the same image.
+    #[test]
+    fn packets_find_the_scalar_walks_crossings_whatever_their_company() {
+        let (volume, skip) = rippled_sphere();
+        volume.visit(Check { skip: &skip });
+    }
+}
