@@ -264,8 +264,9 @@ fn walk_group<V: Volume>(
         fine.masks(index)
             .map(|masks| (masks, (cell - mc * m).as_uvec3()))
     };
-    // Per lane: its side, its window of slices [start, end) (in steps
-    // along k), and whether it is still searching.
+    // Per lane: its side of the iso value (also as bits), the slice it
+    // starts in (its window is the `WINDOW` slices from there along
+    // `step`), and whether it is still searching.
     let mut side = [false; PACKET];
     let mut side_bits = 0u32;
     let mut start = [0i32; PACKET];
