@@ -288,6 +288,39 @@ fn renderers_agree_with_lights_and_shadows() {
     assert_eq!(d.over, 0, "ESS changes the image: {d}");
 }
 
+/// A headlight casts no shadow the eye can see (its shadow ray would
+/// retrace the primary ray): with shadows on, every renderer gives the
+/// image without them. (Shadow rays cast along the direction of a tile's
+/// first hit darkened pixels near the sphere's silhouette, differently in
+/// each renderer.)
+#[test]
+fn a_headlight_casts_no_shadow() {
+    let s = SphereOnPlane::new();
+    let scene = s.scene();
+    let tf = white();
+    // Wide-angle, so that a tile's rays spread by several degrees.
+    let mut cam = Camera::look_at(
+        Vec3::new(60.0, 20.0, 60.0),
+        Vec3::new(24.0, 8.0, 24.0),
+        160,
+        120,
+    );
+    cam.fov_y_deg = 70.0;
+    let without = render(&scene, &cam, &tf, &lit_options(Vec::new(), false));
+    assert!(without.stats.covered > 2000, "{}", without.stats.covered);
+    for mut r in [
+        RendererKind::Serial.renderer(1).expect("serial"),
+        Box::new(TiledRenderer::new(2, 7).expect("tiles")) as AnyRenderer,
+        RendererKind::Object.renderer(2).expect("object"),
+    ] {
+        let f = r
+            .render(&scene, &cam, &tf, &lit_options(Vec::new(), true))
+            .expect("render");
+        let d = common::compare_images(&without.rgb, &f.rgb, 0);
+        assert_eq!(d.over, 0, "{}: {d}", r.name());
+    }
+}
+
 /// Light straight from above: a point of the floor is in shadow exactly
 /// when it lies under the sphere (within its radius of the centre's
 /// vertical), away from a band of half a voxel around the rim.

@@ -423,7 +423,8 @@ pub struct RenderArgs {
     #[arg(long = "light", value_name = "DX,DY,DZ", allow_hyphen_values = true, value_parser = parse_vec3)]
     pub lights: Vec<Vec3>,
     /// --mode iso and metaballs: cast a shadow ray towards each light from
-    /// every hit.
+    /// every hit (in iso mode none towards the headlight, which casts no
+    /// shadow the eye can see).
     #[arg(long, value_enum, default_value_t = Switch::Off)]
     pub shadows: Switch,
     /// --mode iso: one mirror bounce; K (0..1) is the share of each hit's

@@ -28,7 +28,8 @@ pub struct RenderOptions {
     /// Directional lights of [`RenderMode::Iso`] (world directions towards
     /// each light, any length but not zero); empty = one headlight.
     pub lights: Vec<Vec3>,
-    /// Shadow rays towards each light in [`RenderMode::Iso`].
+    /// Shadow rays towards each light in [`RenderMode::Iso`] (none for the
+    /// headlight, which casts no shadow the eye can see).
     pub shadows: bool,
     /// One mirror bounce in [`RenderMode::Iso`]: the share (0..1) of a
     /// hit's colour that is what the ray reflected about the surface's

@@ -297,10 +297,15 @@ fn lit<V: Volume>(
     } else {
         ctx.lights
     };
+    // A headlight casts no shadow the eye can see: its shadow ray would
+    // retrace the ray that found the hit, which met nothing before it. (Its
+    // direction differs from pixel to pixel, so the per-tile cache of
+    // shadow rays cannot hold it either.)
+    let casts = ctx.shadows && !ctx.lights.is_empty();
     let mut rgb = c * ph.ka;
     for (k, &l) in lights.iter().enumerate() {
         let ndotl = n.dot(l);
-        if ndotl <= 0.0 || (ctx.shadows && in_shadow(ctx, hit.pos.into(), n, (l, k), shadow_rays)) {
+        if ndotl <= 0.0 || (casts && in_shadow(ctx, hit.pos.into(), n, (l, k), shadow_rays)) {
             continue;
         }
         let (diffuse, spec) = ph.light(n, l, view);
