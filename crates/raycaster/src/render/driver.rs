@@ -309,14 +309,14 @@ pub(crate) fn render_tile<V: Volume, I: Integrator>(
     film: &Film,
     rect: &PixelRect,
 ) -> (Vec<u8>, u64) {
-    let mut rgb = Vec::with_capacity(3 * rect.area() as usize);
-    let mut samples = 0;
-    let mut counts = RayCounts::default();
-    let mut scratch = I::Scratch::default();
     let all_enter = job.plan.proxy.is_some() && job.all_enter(rect);
     if I::PACKETS {
         return render_tile_packets::<V, I>(job, film, rect, all_enter);
     }
+    let mut rgb = Vec::with_capacity(3 * rect.area() as usize);
+    let mut samples = 0;
+    let mut counts = RayCounts::default();
+    let mut scratch = I::Scratch::default();
     for j in rect.y0..rect.y1 {
         for i in rect.x0..rect.x1 {
             let px = match job.pixel_in(i, j, all_enter) {
