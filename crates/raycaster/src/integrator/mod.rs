@@ -232,10 +232,7 @@ pub trait Integrator: Copy + Default + Send + Sync + std::fmt::Debug + 'static {
         rays: &mut [Self],
         segs: &[RaySegment],
     ) -> u64 {
-        rays.iter_mut()
-            .zip(segs)
-            .map(|(ray, seg)| ray.integrate(Span::whole(ctx, seg)))
-            .sum()
+        integrate_each(ctx, rays, segs)
     }
 
     /// True when nothing more can change this ray (ERT, a hit).
@@ -266,6 +263,20 @@ pub trait Integrator: Copy + Default + Send + Sync + std::fmt::Debug + 'static {
     /// What this (part of a) ray hands over for sort-last compositing: the
     /// record that the parts of a ray merge by (see [`Fragment`]).
     fn fragment<V: Volume>(&self, ctx: &FrameContext<'_, V>) -> Fragment;
+}
+
+/// [`Integrator::integrate_packet`] one ray at a time: each of `rays`
+/// integrates the whole of its segment in `segs`.
+#[inline(always)]
+pub(crate) fn integrate_each<V: Volume, I: Integrator>(
+    ctx: &FrameContext<'_, V>,
+    rays: &mut [I],
+    segs: &[RaySegment],
+) -> u64 {
+    rays.iter_mut()
+        .zip(segs)
+        .map(|(ray, seg)| ray.integrate(Span::whole(ctx, seg)))
+        .sum()
 }
 
 /// Everything an integrator needs for one frame: the volume, the tabulated

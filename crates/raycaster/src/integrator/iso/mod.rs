@@ -29,7 +29,7 @@ pub(crate) use packet::{PACKET_H, PACKET_W};
 
 use glam::{IVec3, UVec3, Vec3, Vec3A, Vec4};
 
-use super::{Fragment, FrameContext, Integrator, Occupancy, RaySegment, Span};
+use super::{Fragment, FrameContext, Integrator, Occupancy, RaySegment, Span, integrate_each};
 use crate::accel::{CellClass, CellMasks, IsoCells, SkipGrid};
 use crate::geometry::Aabb;
 use crate::volume::{Corners, GradientCache, Grid, Volume};
@@ -158,11 +158,7 @@ impl Integrator for IsoState {
     ) -> u64 {
         let fine = ctx.skip.iso_cells().filter(|_| ctx.ess);
         let Some(fine) = fine.filter(|_| segs.len() <= packet::PACKET) else {
-            return rays
-                .iter_mut()
-                .zip(segs)
-                .map(|(ray, seg)| ray.integrate(Span::whole(ctx, seg)))
-                .sum();
+            return integrate_each(ctx, rays, segs);
         };
         let mut lanes = [packet::PacketRay::EMPTY; packet::PACKET];
         for (lane, seg) in lanes.iter_mut().zip(segs) {
