@@ -24,7 +24,7 @@ status=0
 
 # The end-to-end suites that reach the unsafe code (every renderer, layout,
 # sample type and ISA; mapped files; hostile inputs).
-SUITES=(parallel_renderers render_skipping vol_format hostile_inputs fuzz_regressions)
+SUITES=(parallel_renderers render_skipping render_iso_exact vol_format hostile_inputs fuzz_regressions)
 
 run_asan() {
     if ! cargo +nightly --version >/dev/null 2>&1; then

@@ -282,7 +282,8 @@ fn renderers_agree_with_lights_and_shadows() {
         let d = common::compare_images(&serial.rgb, &f.rgb, 0);
         assert_eq!(d.over, 0, "{} differs from serial: {d}", r.name());
     }
-    // Without skipping the walk takes every cell: the same hits.
+    // Without skipping the walk takes every cell, and primary and shadow
+    // rays go one by one rather than in packets: the same hits.
     let no_ess = render(&scene, &cam, &tf, &RenderOptions { ess: false, ..o });
     let d = common::compare_images(&serial.rgb, &no_ess.rgb, 1);
     assert_eq!(d.over, 0, "ESS changes the image: {d}");

@@ -260,6 +260,22 @@ pub trait Integrator: Copy + Default + Send + Sync + std::fmt::Debug + 'static {
         self.resolve(ctx)
     }
 
+    /// [`Integrator::resolve_in`] for the rays of one packet (as
+    /// [`Integrator::integrate_packet`] left them), into `out`: the same
+    /// colours, found together where the rays can share work. This
+    /// default resolves them one by one.
+    #[inline(always)]
+    fn resolve_packet<V: Volume>(
+        rays: &[Self],
+        ctx: &FrameContext<'_, V>,
+        scratch: &mut Self::Scratch,
+        out: &mut [Vec4],
+    ) {
+        for (ray, c) in rays.iter().zip(out) {
+            *c = ray.resolve_in(ctx, scratch);
+        }
+    }
+
     /// What this (part of a) ray hands over for sort-last compositing: the
     /// record that the parts of a ray merge by (see [`Fragment`]).
     fn fragment<V: Volume>(&self, ctx: &FrameContext<'_, V>) -> Fragment;

@@ -9,6 +9,8 @@
 
 use std::time::Instant;
 
+use glam::Vec4;
+
 use super::film::{Film, RayCounts};
 use super::plan::{FramePlan, PlanCache, RenderOptions};
 use super::{Cancel, Frame, FrameStats, Renderer};
@@ -388,8 +390,9 @@ fn render_tile_packets<V: Volume, I: Integrator>(
             }
             let mut rays = [I::default(); N];
             samples += I::integrate_packet(&job.ctx, &mut rays[..n], &segs[..n]);
-            for (ray, &(i, j)) in rays[..n].iter().zip(&pixels[..n]) {
-                let c = ray.resolve_in(&job.ctx, &mut scratch);
+            let mut colours = [Vec4::ZERO; N];
+            I::resolve_packet(&rays[..n], &job.ctx, &mut scratch, &mut colours[..n]);
+            for (&c, &(i, j)) in colours[..n].iter().zip(&pixels[..n]) {
                 counts.add(c);
                 put(&mut rgb, i, j, film.composite(c));
             }

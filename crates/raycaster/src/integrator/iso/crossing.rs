@@ -167,10 +167,14 @@ impl CellCubic {
         // Each coefficient and each evaluation of g errs by a few ulps of
         // the terms' sum; 1e-5 of it is far beyond both.
         let margin = 1e-5 * (d.abs() + p1.abs() + p2.abs() + p3.abs());
+        // Each coefficient compared on its own rather than their minimum
+        // or maximum: `f32::min`/`max`'s NaN handling triples the
+        // instructions of this test, which packets run for every lane of
+        // every straddling cell. (A NaN proves nothing: the extrema decide.)
         if side {
-            d.min(b1).min(b2).min(b3) > margin
+            (d > margin) & (b1 > margin) & (b2 > margin) & (b3 > margin)
         } else {
-            d.max(b1).max(b2).max(b3) < -margin
+            (d < -margin) & (b1 < -margin) & (b2 < -margin) & (b3 < -margin)
         }
     }
 
@@ -185,9 +189,9 @@ impl CellCubic {
         let q2 = 3.0 * self.a * len * len;
         let (b0, b1, b2) = (self.c, self.c + q1, self.c + 2.0 * q1 + q2);
         let margin = 1e-5 * (self.c.abs() + 2.0 * q1.abs() + q2.abs());
-        let lo = b0.min(b1).min(b2);
-        let hi = b0.max(b1).max(b2);
-        lo > margin || hi < -margin
+        // As in `stays_on`, without `f32::min`/`max`.
+        ((b0 > margin) & (b1 > margin) & (b2 > margin))
+            | ((b0 < -margin) & (b1 < -margin) & (b2 < -margin))
     }
 
     /// `g'(t)`.

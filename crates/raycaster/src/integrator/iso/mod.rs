@@ -31,7 +31,7 @@ use glam::{IVec3, UVec3, Vec3, Vec3A, Vec4};
 
 use super::{Fragment, FrameContext, Integrator, Occupancy, RaySegment, Span, integrate_each};
 use crate::accel::{CellClass, CellMasks, IsoCells, SkipGrid};
-use crate::geometry::Aabb;
+use crate::geometry::{Aabb, max_to, min_to};
 use crate::volume::{Corners, GradientCache, Grid, Volume};
 
 /// How an isosurface's normal is found at a hit.
@@ -225,22 +225,133 @@ impl Integrator for IsoState {
         let Some(hit) = self.hit else {
             return Vec4::ZERO;
         };
-        let c = *cache
-            .colour
-            .get_or_insert_with(|| ctx.tf.evaluate(ctx.iso_value).truncate());
-        let reflects = ctx.reflection > 0.0;
-        let n = if ctx.shading.is_some() || reflects {
+        let n = if ctx.shading.is_some() || ctx.reflection > 0.0 {
             normal(ctx, &hit, &mut cache.gradients)
         } else {
             None
         };
-        let mut rgb = lit(ctx, c, &hit, n, &mut cache.shadow_rays);
-        if reflects && let Some(n) = n {
-            let k = ctx.reflection;
-            rgb = rgb * (1.0 - k) + mirror(ctx, c, &hit, n, cache) * k;
-        }
-        rgb.extend(1.0)
+        shade(ctx, &hit, n, None, cache)
     }
+
+    /// With shadows, the block's shadow rays towards each light are walked
+    /// together ([`shadow_masks`]): they share a direction and start close
+    /// to each other on the surface. The same colours as one by one.
+    fn resolve_packet<V: Volume>(
+        rays: &[Self],
+        ctx: &FrameContext<'_, V>,
+        cache: &mut ShadingCache,
+        out: &mut [Vec4],
+    ) {
+        let fine = ctx.skip.iso_cells().filter(|_| ctx.ess);
+        let casts = ctx.shading.is_some() && ctx.shadows && !ctx.lights.is_empty();
+        let Some(fine) = fine.filter(|_| casts && rays.len() <= packet::PACKET) else {
+            for (ray, c) in rays.iter().zip(out) {
+                *c = ray.resolve_in(ctx, cache);
+            }
+            return;
+        };
+        let mut normals = [None; packet::PACKET];
+        for (ray, n) in rays.iter().zip(&mut normals) {
+            if let Some(hit) = &ray.hit {
+                *n = normal(ctx, hit, &mut cache.gradients);
+            }
+        }
+        let masks = shadow_masks(ctx, fine, rays, &normals);
+        for (lane, (ray, c)) in rays.iter().zip(out).enumerate() {
+            *c = match &ray.hit {
+                Some(hit) => shade(ctx, hit, normals[lane], Some((&masks, lane)), cache),
+                None => Vec4::ZERO,
+            };
+        }
+    }
+}
+
+/// Which of a packet's hits each of the first lights is hidden from:
+/// bit `lane` of entry `k` set when light `k`'s shadow ray from the hit in
+/// lane `lane` meets the surface.
+type ShadowMasks = [u8; CACHED_LIGHTS];
+
+/// The opaque colour of the surface at `hit` (unit world normal `n`, `None`
+/// where there is none): the TF colour at the iso value, lit ([`lit`]) and
+/// mixed with the mirror image when the frame reflects. `known`: the
+/// packet's shadow masks found ahead and the hit's lane in them.
+#[inline(always)]
+fn shade<V: Volume>(
+    ctx: &FrameContext<'_, V>,
+    hit: &IsoHit,
+    n: Option<Vec3>,
+    known: Option<(&ShadowMasks, usize)>,
+    cache: &mut ShadingCache,
+) -> Vec4 {
+    let c = *cache
+        .colour
+        .get_or_insert_with(|| ctx.tf.evaluate(ctx.iso_value).truncate());
+    let mut rgb = lit(ctx, c, hit, n, known, &mut cache.shadow_rays);
+    if ctx.reflection > 0.0
+        && let Some(n) = n
+    {
+        let k = ctx.reflection;
+        rgb = rgb * (1.0 - k) + mirror(ctx, c, hit, n, cache) * k;
+    }
+    rgb.extend(1.0)
+}
+
+/// The shadow rays of a packet's hits (`rays`, with their view-facing
+/// normals `normals`) towards each of the first [`CACHED_LIGHTS`] lights,
+/// walked as packets through the fine occupancy level `fine`: the rays
+/// [`in_shadow`] would cast, with the same answers.
+fn shadow_masks<V: Volume>(
+    ctx: &FrameContext<'_, V>,
+    fine: &IsoCells,
+    rays: &[IsoState],
+    normals: &[Option<Vec3>; packet::PACKET],
+) -> ShadowMasks {
+    let grid = ctx.volume.grid();
+    let mut masks = ShadowMasks::default();
+    for (k, (&l, mask)) in ctx.lights.iter().zip(&mut masks).enumerate() {
+        let towards_light = VoxelRay::new(Vec3::ZERO, l / grid.spacing);
+        let mut lanes = [packet::PacketRay::EMPTY; packet::PACKET];
+        let mut lane_of = [0usize; packet::PACKET];
+        let mut m = 0;
+        for (lane, (ray, n)) in rays.iter().zip(normals).enumerate() {
+            let (Some(hit), Some(n)) = (&ray.hit, n) else {
+                continue;
+            };
+            if n.dot(l) <= 0.0 {
+                continue;
+            }
+            let ray = VoxelRay {
+                origin: off_surface(grid, hit.pos.into(), *n).into(),
+                ..towards_light
+            };
+            let t1 = shadow_reach(ctx, &ray, k);
+            // As `secondary_hit`: nothing to search on an empty interval.
+            if t1.is_nan() || t1 <= 0.0 {
+                continue;
+            }
+            lanes[m] = packet::PacketRay { ray, t0: 0.0, t1 };
+            lane_of[m] = lane;
+            m += 1;
+        }
+        if m == 0 {
+            continue;
+        }
+        let mut found = [packet::PacketHit::default(); packet::PACKET];
+        packet::search_packet(
+            ctx.volume,
+            ctx.skip,
+            fine,
+            ctx.iso_value,
+            &lanes[..m],
+            &mut found[..m],
+        );
+        for (f, &lane) in found[..m].iter().zip(&lane_of) {
+            if f.hit.is_some() {
+                *mask |= 1 << lane;
+            }
+        }
+    }
+    masks
 }
 
 /// The unit world normal at `hit`, facing where its ray came from (the
@@ -278,6 +389,7 @@ fn lit<V: Volume>(
     c: Vec3,
     hit: &IsoHit,
     n: Option<Vec3>,
+    known: Option<(&ShadowMasks, usize)>,
     shadow_rays: &mut [Option<VoxelRay>; CACHED_LIGHTS],
 ) -> Vec3 {
     let Some(ph) = &ctx.shading else {
@@ -301,7 +413,11 @@ fn lit<V: Volume>(
     let mut rgb = c * ph.ka;
     for (k, &l) in lights.iter().enumerate() {
         let ndotl = n.dot(l);
-        if ndotl <= 0.0 || (casts && in_shadow(ctx, hit.pos.into(), n, (l, k), shadow_rays)) {
+        let mut shadowed = || match known {
+            Some((masks, lane)) if k < CACHED_LIGHTS => masks[k] >> lane & 1 != 0,
+            _ => in_shadow(ctx, hit.pos.into(), n, (l, k), shadow_rays),
+        };
+        if ndotl <= 0.0 || (casts && shadowed()) {
             continue;
         }
         let (diffuse, spec) = ph.light(n, l, view);
@@ -340,7 +456,7 @@ fn mirror<V: Volume>(
                 world_dir: r,
             };
             let n = normal(ctx, &seen, &mut cache.reflected);
-            lit(ctx, c, &seen, n, &mut cache.shadow_rays)
+            lit(ctx, c, &seen, n, None, &mut cache.shadow_rays)
         }
         None => ctx.background,
     }
@@ -381,14 +497,21 @@ fn in_shadow<V: Volume>(
             None => towards_light(),
         }
     };
+    secondary_hit(ctx, &ray, shadow_reach(ctx, &ray, light)).is_some()
+}
+
+/// How far a shadow ray `ray` towards light number `light` is searched:
+/// to where it leaves the volume, or sooner past the last cell towards the
+/// light that can hold the surface there (the light's proxy).
+#[inline]
+fn shadow_reach<V: Volume>(ctx: &FrameContext<'_, V>, ray: &VoxelRay, light: usize) -> f32 {
+    let grid = ctx.volume.grid();
     let bounds = Aabb::new(Vec3::ZERO, grid.max_coord());
-    let mut t1 = bounds.exit(ray.origin, ray.inv_dir);
-    if let Some(Some(proxy)) = ctx.light_proxies.get(light) {
-        // Past the last cell towards the light that can hold the surface
-        // there is nothing to find.
-        t1 = t1.min(proxy.reach(grid.voxel_to_world(origin)));
+    let t1 = bounds.exit(ray.origin, ray.inv_dir);
+    match ctx.light_proxies.get(light) {
+        Some(Some(proxy)) => t1.min(proxy.reach(grid.voxel_to_world(ray.origin.into()))),
+        _ => t1,
     }
-    secondary_hit(ctx, &ray, t1).is_some()
 }
 
 /// Where a ray leaving the surface point `p` (voxel space) with world
@@ -581,17 +704,17 @@ impl<'v, V: Volume> Search<'v, V> {
                     coords,
                 } => (bounds, Some((index, coords))),
             };
-            let exit = bounds.exit(ray.origin, ray.inv_dir).min(t1);
-            let mut next = exit.max(t + nudge);
+            let exit = min_to(bounds.exit(ray.origin, ray.inv_dir), t1);
+            let mut next = max_to(exit, t + nudge);
             if let Some((index, coords)) = occupied {
                 match fine.and_then(|f| Some((f, f.masks(index)?))) {
                     Some((fine, m)) if !m.none_straddle() => {
                         let left = self.straddling_run(ray, fine, (index, m, coords), t, t1);
-                        next = left.max(t + nudge);
+                        next = max_to(left, t + nudge);
                     }
                     masks => {
                         let masks = masks.map(|(_, m)| (m, (bounds.min + 0.5).as_uvec3()));
-                        self.cells(ray, t, next.min(t1), masks);
+                        self.cells(ray, t, min_to(next, t1), masks);
                     }
                 }
             }
@@ -635,7 +758,7 @@ impl<'v, V: Volume> Search<'v, V> {
         let tol = ray.tol;
         let mut tc = ta;
         loop {
-            let te = dda.next.min_element().min(tb).max(tc);
+            let te = max_to(min_to(dda.next.min_element(), tb), tc);
             self.steps += 1;
             let c = cell.as_uvec3();
             let found = match &masks {
@@ -701,7 +824,7 @@ impl<'v, V: Volume> Search<'v, V> {
         let mut bit = m.index((cell - lo).as_uvec3()) as i32;
         let mut tc = ta;
         loop {
-            let te = dda.next.min_element().min(tb).max(tc);
+            let te = max_to(min_to(dda.next.min_element(), tb), tc);
             self.steps += 1;
             let found = if m.straddles_at(bit as u32) {
                 let c = cell.as_uvec3();

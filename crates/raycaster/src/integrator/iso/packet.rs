@@ -28,6 +28,7 @@ use glam::{IVec3, UVec3, Vec3};
 
 use super::{CellCubic, Search, VoxelRay};
 use crate::accel::{IsoCells, SkipGrid};
+use crate::geometry::{max_to, min_to};
 use crate::simd::{self, Isa, Kernel};
 use crate::volume::Volume;
 
@@ -340,8 +341,8 @@ fn walk_group<V: Volume>(
             if into < 0 {
                 continue;
             }
-            let a = ((near - lanes.o[k][l]) * lanes.inv[k][l]).max(lanes.t0[l]);
-            let b = ((far - lanes.o[k][l]) * lanes.inv[k][l]).min(lanes.t1[l]);
+            let a = max_to((near - lanes.o[k][l]) * lanes.inv[k][l], lanes.t0[l]);
+            let b = min_to((far - lanes.o[k][l]) * lanes.inv[k][l], lanes.t1[l]);
             ta[l] = a;
             tb[l] = b;
             if a > b {
@@ -351,10 +352,10 @@ fn walk_group<V: Volume>(
             for t in [a, b] {
                 let pu = lanes.o[u][l] + lanes.d[u][l] * t;
                 let pv = lanes.o[v][l] + lanes.d[v][l] * t;
-                lo_u = lo_u.min(pu);
-                hi_u = hi_u.max(pu);
-                lo_v = lo_v.min(pv);
-                hi_v = hi_v.max(pv);
+                lo_u = min_to(pu, lo_u);
+                hi_u = max_to(pu, hi_u);
+                lo_v = min_to(pv, lo_v);
+                hi_v = max_to(pv, hi_v);
             }
         }
         // The earliest crossing per lane in this slice, and the entry of
