@@ -251,6 +251,14 @@ impl SphereOnPlane {
     }
 }
 
+/// A perspective camera at `pos` looking at `at`, `w`×`h` pixels, with a
+/// vertical field of view of `fov` degrees.
+fn camera(pos: Vec3, at: Vec3, (w, h): (u32, u32), fov: f32) -> Camera {
+    let mut cam = Camera::look_at(pos, at, w, h);
+    cam.fov_y_deg = fov;
+    cam
+}
+
 fn lit_options(lights: Vec<Vec3>, shadows: bool) -> RenderOptions {
     RenderOptions {
         iso_value: 0.0,
@@ -267,8 +275,7 @@ fn renderers_agree_with_lights_and_shadows() {
     let s = SphereOnPlane::new();
     let scene = s.scene();
     let tf = white();
-    let mut cam = Camera::look_at(Vec3::new(70.0, 55.0, 80.0), s.centre, 96, 80);
-    cam.fov_y_deg = 40.0;
+    let cam = camera(Vec3::new(70.0, 55.0, 80.0), s.centre, (96, 80), 40.0);
     let o = lit_options(
         vec![Vec3::new(0.3, 1.0, 0.2), Vec3::new(-1.0, 0.5, 0.0)],
         true,
@@ -300,13 +307,12 @@ fn a_headlight_casts_no_shadow() {
     let scene = s.scene();
     let tf = white();
     // Wide-angle, so that a tile's rays spread by several degrees.
-    let mut cam = Camera::look_at(
+    let cam = camera(
         Vec3::new(60.0, 20.0, 60.0),
         Vec3::new(24.0, 8.0, 24.0),
-        160,
-        120,
+        (160, 120),
+        70.0,
     );
-    cam.fov_y_deg = 70.0;
     let without = render(&scene, &cam, &tf, &lit_options(Vec::new(), false));
     assert!(without.stats.covered > 2000, "{}", without.stats.covered);
     for mut r in [
@@ -330,13 +336,12 @@ fn a_spheres_shadow_falls_under_it() {
     let s = SphereOnPlane::new();
     let scene = s.scene();
     let tf = white();
-    let mut cam = Camera::look_at(
+    let cam = camera(
         Vec3::new(24.0, 60.0, 75.0),
         Vec3::new(24.0, 6.0, 24.0),
-        120,
-        100,
+        (120, 100),
+        45.0,
     );
-    cam.fov_y_deg = 45.0;
     let frame_cam = cam.frame().expect("camera");
     let up = Vec3::Y;
     let with = render(&scene, &cam, &tf, &lit_options(vec![up], true));
@@ -390,13 +395,12 @@ fn a_mirror_floor_shows_the_sphere_where_the_reflected_ray_meets_it() {
     let s = SphereOnPlane::new();
     let scene = s.scene();
     let tf = white();
-    let mut cam = Camera::look_at(
+    let cam = camera(
         Vec3::new(24.0, 22.0, 75.0),
         Vec3::new(24.0, 8.0, 24.0),
-        120,
-        100,
+        (120, 100),
+        45.0,
     );
-    cam.fov_y_deg = 45.0;
     let frame_cam = cam.frame().expect("camera");
     let background = Vec3::new(0.2, 0.4, 0.6);
     let o = RenderOptions {

@@ -156,8 +156,7 @@ impl Integrator for IsoState {
         rays: &mut [Self],
         segs: &[RaySegment],
     ) -> u64 {
-        let fine = ctx.skip.iso_cells().filter(|_| ctx.ess);
-        let Some(fine) = fine.filter(|_| segs.len() <= packet::PACKET) else {
+        let Some(fine) = packet_cells(ctx).filter(|_| segs.len() <= packet::PACKET) else {
             return integrate_each(ctx, rays, segs);
         };
         let mut lanes = [packet::PacketRay::EMPTY; packet::PACKET];
@@ -170,16 +169,7 @@ impl Integrator for IsoState {
                 t1: if seg.is_empty() { f32::NAN } else { seg.t_out },
             };
         }
-        let n = segs.len();
-        let mut found = [packet::PacketHit::default(); packet::PACKET];
-        packet::search_packet(
-            ctx.volume,
-            ctx.skip,
-            fine,
-            ctx.iso_value,
-            &lanes[..n],
-            &mut found[..n],
-        );
+        let found = search_lanes(ctx, fine, &lanes[..segs.len()]);
         let mut steps = 0;
         for ((ray, seg), (lane, f)) in rays.iter_mut().zip(segs).zip(lanes.iter().zip(&found)) {
             *ray = IsoState {
@@ -242,9 +232,8 @@ impl Integrator for IsoState {
         cache: &mut ShadingCache,
         out: &mut [Vec4],
     ) {
-        let fine = ctx.skip.iso_cells().filter(|_| ctx.ess);
         let casts = ctx.shading.is_some() && ctx.shadows && !ctx.lights.is_empty();
-        let Some(fine) = fine.filter(|_| casts && rays.len() <= packet::PACKET) else {
+        let Some(fine) = packet_cells(ctx).filter(|_| casts && rays.len() <= packet::PACKET) else {
             for (ray, c) in rays.iter().zip(out) {
                 *c = ray.resolve_in(ctx, cache);
             }
@@ -310,10 +299,15 @@ fn shadow_masks<V: Volume>(
     let mut masks = ShadowMasks::default();
     for (k, (&l, mask)) in ctx.lights.iter().zip(&mut masks).enumerate() {
         let towards_light = VoxelRay::new(Vec3::ZERO, l / grid.spacing);
-        let mut lanes = [packet::PacketRay::EMPTY; packet::PACKET];
-        let mut lane_of = [0usize; packet::PACKET];
-        let mut m = 0;
-        for (lane, (ray, n)) in rays.iter().zip(normals).enumerate() {
+        // A lane per hit, in place; a lane that casts no ray searches an
+        // empty interval (and finds nothing).
+        let mut lanes = [packet::PacketRay {
+            ray: towards_light,
+            t0: f32::NAN,
+            t1: f32::NAN,
+        }; packet::PACKET];
+        let mut any = false;
+        for (lane, (ray, n)) in lanes.iter_mut().zip(rays.iter().zip(normals)) {
             let (Some(hit), Some(n)) = (&ray.hit, n) else {
                 continue;
             };
@@ -329,29 +323,47 @@ fn shadow_masks<V: Volume>(
             if t1.is_nan() || t1 <= 0.0 {
                 continue;
             }
-            lanes[m] = packet::PacketRay { ray, t0: 0.0, t1 };
-            lane_of[m] = lane;
-            m += 1;
+            *lane = packet::PacketRay { ray, t0: 0.0, t1 };
+            any = true;
         }
-        if m == 0 {
+        if !any {
             continue;
         }
-        let mut found = [packet::PacketHit::default(); packet::PACKET];
-        packet::search_packet(
-            ctx.volume,
-            ctx.skip,
-            fine,
-            ctx.iso_value,
-            &lanes[..m],
-            &mut found[..m],
-        );
-        for (f, &lane) in found[..m].iter().zip(&lane_of) {
+        let found = search_lanes(ctx, fine, &lanes[..rays.len()]);
+        for (lane, f) in found[..rays.len()].iter().enumerate() {
             if f.hit.is_some() {
                 *mask |= 1 << lane;
             }
         }
     }
     masks
+}
+
+/// The fine occupancy level the packet walks need: the frame's, with
+/// skipping on (without it rays go one by one).
+#[inline]
+fn packet_cells<'a, V: Volume>(ctx: &FrameContext<'a, V>) -> Option<&'a IsoCells> {
+    ctx.skip.iso_cells().filter(|_| ctx.ess)
+}
+
+/// The first crossings of the iso value along a packet's `lanes` (at most
+/// [`packet::PACKET`]) in the frame's volume, one per lane.
+#[inline]
+fn search_lanes<V: Volume>(
+    ctx: &FrameContext<'_, V>,
+    fine: &IsoCells,
+    lanes: &[packet::PacketRay],
+) -> [packet::PacketHit; packet::PACKET] {
+    let mut found = [packet::PacketHit::default(); packet::PACKET];
+    packet::search_packet(
+        ctx.volume,
+        ctx.skip,
+        fine,
+        ctx.iso_value,
+        lanes,
+        &mut found[..lanes.len()],
+    );
+    found
 }
 
 /// The unit world normal at `hit`, facing where its ray came from (the
