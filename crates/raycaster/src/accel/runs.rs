@@ -59,6 +59,8 @@ pub struct SkipRuns<'a> {
     walk: Option<MacrocellWalk>,
     /// The empty space ahead of the ray (when skipping).
     ahead: Option<Ahead<'a>>,
+    /// The ray per axis, for the DDA.
+    axes: Axes,
 }
 
 impl<'a> SkipRuns<'a> {
@@ -74,6 +76,7 @@ impl<'a> SkipRuns<'a> {
             k1: k1.min(seg.count),
             walk: None,
             ahead: skip.map(|s| s.ahead(seg.inv_dir)),
+            axes: Axes::of(seg),
         }
     }
 }
@@ -97,20 +100,21 @@ impl Iterator for SkipRuns<'_> {
         };
         let (cell, index) = skip.locate(seg.pos(k));
         let walk = match self.walk {
-            Some(w) if w.cell == cell.as_ivec3() => w,
-            _ => MacrocellWalk::new(skip, seg, cell, index),
+            Some(w) if w.cell == cell.as_ivec3().to_array() => w,
+            _ => MacrocellWalk::new(skip, &self.axes, cell, index),
         };
         // The run ends at the first sample at or after the box's exit
         // (possibly one early, never late: see `first_index_at_or_after`),
         // and always advances.
-        let (kind, exit, walking) =
-            match skip.cell_kind_ahead(walk.cell.as_uvec3(), walk.index as usize, ahead) {
-                CellKind::Occupied => (RunKind::Cell(walk.index as usize), walk.exit(), true),
-                CellKind::EmptyAlone => (RunKind::Empty, walk.exit(), true),
-                CellKind::EmptyWithin(b) => {
-                    (RunKind::Empty, b.exit(seg.origin, seg.inv_dir), false)
-                }
-            };
+        let (kind, exit, walking) = match skip.cell_kind_ahead(
+            IVec3::from_array(walk.cell).as_uvec3(),
+            walk.index as usize,
+            ahead,
+        ) {
+            CellKind::Occupied => (RunKind::Cell(walk.index as usize), walk.exit(), true),
+            CellKind::EmptyAlone => (RunKind::Empty, walk.exit(), true),
+            CellKind::EmptyWithin(b) => (RunKind::Empty, b.exit(seg.origin, seg.inv_dir), false),
+        };
         let mut end = seg.first_index_at_or_after(exit).max(k + 1);
         if kind != RunKind::Empty {
             end = end.min(self.k1);
@@ -124,7 +128,7 @@ impl Iterator for SkipRuns<'_> {
             let t_end = seg.t(end);
             let mut w = walk;
             for _ in 0..3 {
-                if !w.advance(skip, seg) {
+                if !w.advance(skip, &self.axes) {
                     break;
                 }
                 if w.exit() > t_end {
@@ -147,22 +151,26 @@ impl Iterator for SkipRuns<'_> {
 /// computed as [`Aabb::exit`] computes the cell box's (so the least of
 /// them is that exit exactly).
 ///
+/// Its coordinates are arrays indexed by the axis the DDA steps along: a
+/// `glam` vector indexed by a run-time axis is a `match` on it, a branch
+/// the processor mispredicts at every other step.
+///
 /// [`Aabb::exit`]: crate::geometry::Aabb::exit
 #[derive(Debug, Clone, Copy)]
 struct MacrocellWalk {
-    cell: IVec3,
+    cell: [i32; 3],
     index: isize,
     next: [f32; 3],
 }
 
 impl MacrocellWalk {
     #[inline(always)]
-    fn new(skip: &SkipGrid, seg: &RaySegment, cell: UVec3, index: usize) -> Self {
-        let cell = cell.as_ivec3();
+    fn new(skip: &SkipGrid, axes: &Axes, cell: UVec3, index: usize) -> Self {
+        let cell = cell.as_ivec3().to_array();
         MacrocellWalk {
             cell,
             index: index as isize,
-            next: std::array::from_fn(|a| plane(skip, seg, cell[a], a)),
+            next: std::array::from_fn(|a| plane(skip, axes, cell[a], a)),
         }
     }
 
@@ -175,39 +183,51 @@ impl MacrocellWalk {
     /// Steps into the next cell along the ray; false when that is off the
     /// grid (or the ray moves along no axis).
     #[inline(always)]
-    fn advance(&mut self, skip: &SkipGrid, seg: &RaySegment) -> bool {
+    fn advance(&mut self, skip: &SkipGrid, axes: &Axes) -> bool {
+        // The axis of the nearest plane, the lowest on a tie, without
+        // branches (which axis comes next is anyone's guess).
         let n = self.next;
-        let a = if n[0] <= n[1] && n[0] <= n[2] {
-            0
-        } else if n[1] <= n[2] {
-            1
-        } else {
-            2
-        };
-        let s = step(seg, a);
+        let a01 = (n[1] < n[0]) as usize;
+        let a = if n[2] < n[a01] { 2 } else { a01 };
+        let s = axes.step[a];
         let c = self.cell[a] + s;
-        if s == 0 || c < 0 || c >= skip.count()[a] as i32 {
+        if s == 0 || c < 0 || c >= skip.count().to_array()[a] as i32 {
             return false;
         }
         self.cell[a] = c;
         self.index += s as isize * skip.index_strides()[a];
-        self.next[a] = plane(skip, seg, c, a);
+        self.next[a] = plane(skip, axes, c, a);
         true
     }
 }
 
-/// The DDA's step along axis `a`: ±1, 0 where the ray does not move along
-/// it (or so little that `1/d` overflows: [`Aabb::exit`] ignores such an
-/// axis too).
-///
-/// [`Aabb::exit`]: crate::geometry::Aabb::exit
-#[inline(always)]
-fn step(seg: &RaySegment, a: usize) -> i32 {
-    let inv = seg.inv_dir[a];
-    if inv.abs() < f32::INFINITY {
-        if inv >= 0.0 { 1 } else { -1 }
-    } else {
-        0
+/// What the DDA reads of a ray per axis, as arrays (see [`MacrocellWalk`]).
+#[derive(Debug, Clone, Copy)]
+struct Axes {
+    origin: [f32; 3],
+    inv_dir: [f32; 3],
+    /// ±1, 0 where the ray does not move along the axis (or so little that
+    /// `1/d` overflows: [`Aabb::exit`] ignores such an axis too).
+    ///
+    /// [`Aabb::exit`]: crate::geometry::Aabb::exit
+    step: [i32; 3],
+}
+
+impl Axes {
+    #[inline(always)]
+    fn of(seg: &RaySegment) -> Self {
+        let inv_dir = seg.inv_dir.to_array();
+        Axes {
+            origin: seg.origin.to_array(),
+            inv_dir,
+            step: inv_dir.map(|inv| {
+                if inv.abs() < f32::INFINITY {
+                    if inv >= 0.0 { 1 } else { -1 }
+                } else {
+                    0
+                }
+            }),
+        }
     }
 }
 
@@ -215,14 +235,14 @@ fn step(seg: &RaySegment, a: usize) -> i32 {
 /// does not move along `a`), as the slab test of the cell's box computes
 /// it: the box's corner `c·side`, its far side `c·side + side`.
 #[inline(always)]
-fn plane(skip: &SkipGrid, seg: &RaySegment, c: i32, a: usize) -> f32 {
+fn plane(skip: &SkipGrid, axes: &Axes, c: i32, a: usize) -> f32 {
     let side = skip.cell_side();
     let lo = c as f32 * side;
-    match step(seg, a) {
+    match axes.step[a] {
         0 => f32::INFINITY,
         s => {
             let far = if s > 0 { lo + side } else { lo };
-            (far - seg.origin[a]) * seg.inv_dir[a]
+            (far - axes.origin[a]) * axes.inv_dir[a]
         }
     }
 }
