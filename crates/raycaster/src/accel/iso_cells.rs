@@ -43,6 +43,15 @@ pub struct CellMasks<'a> {
     above: &'a [u64],
 }
 
+/// One interpolation cell of an occupied macrocell ([`IsoCells::cell_state`]).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct CellState {
+    /// Its corners straddle the iso value.
+    pub straddles: bool,
+    /// It lies wholly at or above the iso value (when it does not straddle).
+    pub above: bool,
+}
+
 impl CellMasks<'_> {
     /// The macrocell side `m`.
     #[inline(always)]
@@ -201,6 +210,25 @@ impl IsoCells {
         })
     }
 
+    /// Local cell `local` of macrocell `index` as [`CellMasks::straddles`]
+    /// and [`CellMasks::above`] see it, `None` when the coarse level calls
+    /// the macrocell empty: the two bits without building the masks (a
+    /// packet of rays asks this of every cell across its rays).
+    #[inline(always)]
+    pub fn cell_state(&self, index: usize, local: UVec3) -> Option<CellState> {
+        let s = self.slot[index];
+        if s == u32::MAX {
+            return None;
+        }
+        let b = (local.x * self.side + local.y) * self.side + local.z;
+        let w = s as usize * 2 * self.words + (b >> 6) as usize;
+        let bit = 1u64 << (b & 63);
+        Some(CellState {
+            straddles: self.bits[w] & bit != 0,
+            above: self.bits[w + self.words] & bit != 0,
+        })
+    }
+
     /// The lower corners of the interpolation cells that straddle the iso
     /// value, macrocell by macrocell.
     pub fn straddling_cells(&self) -> Vec<UVec3> {
@@ -283,15 +311,24 @@ mod tests {
                             if want {
                                 listed.push(cell.to_array());
                             }
+                            let local = cell - mc * side;
                             match masks.masks(index) {
                                 Some(m) => {
-                                    let local = cell - mc * side;
                                     assert_eq!(m.straddles(local), want, "cell {cell}");
                                     if !want {
                                         assert_eq!(m.above(local), lo >= iso, "cell {cell}");
                                     }
+                                    // The two bits read alone are the masks'.
+                                    let state = CellState {
+                                        straddles: m.straddles(local),
+                                        above: m.above(local),
+                                    };
+                                    assert_eq!(masks.cell_state(index, local), Some(state));
                                 }
-                                None => assert!(!want, "cell {cell} in an empty macrocell"),
+                                None => {
+                                    assert!(!want, "cell {cell} in an empty macrocell");
+                                    assert_eq!(masks.cell_state(index, local), None);
+                                }
                             }
                         }
                     }

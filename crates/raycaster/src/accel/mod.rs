@@ -18,7 +18,7 @@ mod macrocell;
 mod runs;
 mod skip;
 
-pub use iso_cells::{CellMasks, IsoCells};
+pub use iso_cells::{CellMasks, CellState, IsoCells};
 pub use macrocell::MacrocellGrid;
 pub use runs::{RunKind, SampleRun, SkipRuns};
 pub use skip::{Ahead, CellClass, SkipGrid};

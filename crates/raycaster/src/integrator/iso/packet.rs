@@ -136,8 +136,9 @@ impl<V: Volume> Kernel for Group<'_, V> {
     type Output = ();
 
     #[inline(always)]
-    fn run<I: Isa>(self, _isa: I) {
+    fn run<I: Isa>(self, isa: I) {
         walk_group(
+            isa,
             self.volume,
             self.skip,
             self.fine,
@@ -224,7 +225,8 @@ impl Lanes {
 /// and direction `(k, step)`.
 #[allow(clippy::too_many_arguments)]
 #[inline(always)]
-fn walk_group<V: Volume>(
+fn walk_group<V: Volume, I: Isa>(
+    isa: I,
     volume: &V,
     skip: &SkipGrid,
     fine: &IsoCells,
@@ -251,20 +253,11 @@ fn walk_group<V: Volume>(
     // The macrocell of a cell by a shift where the side allows.
     let shift = (m as u32)
         .is_power_of_two()
-        .then(|| IVec3::splat(m.trailing_zeros() as i32));
+        .then(|| m.trailing_zeros() as i32);
     let count = fine.count().as_ivec3();
     let stride = IVec3::new(count.y * count.z, count.z, 1);
-    // A cell's bit sets and its place in them; `None` in an empty
-    // macrocell.
-    let masks_of = |cell: IVec3| {
-        let mc = match shift {
-            Some(sh) => cell >> sh,
-            None => cell / m,
-        };
-        let index = (mc * stride).element_sum() as usize;
-        fine.masks(index)
-            .map(|masks| (masks, (cell - mc * m).as_uvec3()))
-    };
+    // A cell's state in the fine level; `None` in an empty macrocell.
+    let state_of = |cell: IVec3| cell_state(fine, shift, stride, cell);
     // Per lane: its side of the iso value (also as bits), the slice it
     // starts in (its window is the `WINDOW` slices from there along
     // `step`), and whether it is still searching.
@@ -295,8 +288,8 @@ fn walk_group<V: Volume>(
         // else the cubic's value at the start, as the walk computes it.
         let probe = r.ray.at(r.t0 + r.ray.nudge.min(0.5 * (r.t1 - r.t0)));
         let cell = probe.floor().as_ivec3().clamp(IVec3::ZERO, last);
-        side[l] = match masks_of(cell) {
-            Some((masks, local)) if !masks.straddles(local) => masks.above(local),
+        side[l] = match state_of(cell) {
+            Some(st) if !st.straddles => st.above,
             _ => {
                 let corners = volume.corners(cell.as_uvec3());
                 let p0 = r.ray.at(r.t0) - cell.as_vec3();
@@ -313,55 +306,74 @@ fn walk_group<V: Volume>(
         return;
     }
     // Slices from the earliest start along the step to the latest window's
-    // end.
-    let lanes_of = |mask: u32| (0..PACKET).filter(move |l| mask & (1 << l) != 0);
+    // end. Per slice the lanes' work is done for all lanes at once, in
+    // arrays the compiler keeps in vector registers, and kept as bit masks
+    // over the lanes: only the rare per-lane events (a crossing to solve, a
+    // lane done) loop over lanes.
+    let started = active;
+    let mut steps = [0u64; PACKET];
+    for l in lanes_of(started) {
+        steps[l] = 1;
+    }
     let mut s = lanes_of(active).map(|l| start[l] * step).min().unwrap_or(0) * step;
     while active != 0 {
         if s < 0 || s > last[k] {
             // Past the grid: the lanes still searching end without a hit.
             break;
         }
-        // The lanes whose window holds slice `s`, their extent across it.
+        // The lanes whose window holds slice `s` (`windowed`), the part of
+        // each in it, those that have a part (`in_slice`), and their extent
+        // across it (lanes without a part add nothing).
         let (near, far) = if step > 0 {
             (s as f32, (s + 1) as f32)
         } else {
             ((s + 1) as f32, s as f32)
         };
-        let mut in_slice = 0u32;
-        let (mut lo_u, mut hi_u, mut lo_v, mut hi_v) = (
-            f32::INFINITY,
-            f32::NEG_INFINITY,
-            f32::INFINITY,
-            f32::NEG_INFINITY,
-        );
         let mut ta = [0.0f32; PACKET];
         let mut tb = [0.0f32; PACKET];
-        for l in lanes_of(active) {
-            let into = (s - start[l]) * step;
-            if into < 0 {
-                continue;
-            }
+        let mut into = [0i32; PACKET];
+        let mut live = [0u32; PACKET];
+        let mut inside = [0u32; PACKET];
+        let mut lo_u = [f32::INFINITY; PACKET];
+        let mut hi_u = [f32::NEG_INFINITY; PACKET];
+        let mut lo_v = [f32::INFINITY; PACKET];
+        let mut hi_v = [f32::NEG_INFINITY; PACKET];
+        for l in 0..PACKET {
+            into[l] = (s - start[l]) * step;
             let a = max_to((near - lanes.o[k][l]) * lanes.inv[k][l], lanes.t0[l]);
             let b = min_to((far - lanes.o[k][l]) * lanes.inv[k][l], lanes.t1[l]);
             ta[l] = a;
             tb[l] = b;
-            if a > b {
-                continue;
-            }
-            in_slice |= 1 << l;
-            for t in [a, b] {
-                let pu = lanes.o[u][l] + lanes.d[u][l] * t;
-                let pv = lanes.o[v][l] + lanes.d[v][l] * t;
-                lo_u = min_to(pu, lo_u);
-                hi_u = max_to(pu, hi_u);
-                lo_v = min_to(pv, lo_v);
-                hi_v = max_to(pv, hi_v);
+            let is_live = (active >> l) & 1 != 0 && into[l] >= 0;
+            live[l] = is_live as u32;
+            let is_inside = is_live && a <= b;
+            inside[l] = is_inside as u32;
+            let (ua, ub) = (
+                lanes.o[u][l] + lanes.d[u][l] * a,
+                lanes.o[u][l] + lanes.d[u][l] * b,
+            );
+            let (va, vb) = (
+                lanes.o[v][l] + lanes.d[v][l] * a,
+                lanes.o[v][l] + lanes.d[v][l] * b,
+            );
+            if is_inside {
+                lo_u[l] = min_to(ua, ub);
+                hi_u[l] = max_to(ua, ub);
+                lo_v[l] = min_to(va, vb);
+                hi_v[l] = max_to(va, vb);
             }
         }
-        // The earliest crossing per lane in this slice, and the entry of
-        // the cell it lies in (ties go to the cell entered first).
-        let mut best = [(f32::INFINITY, f32::INFINITY, UVec3::ZERO); PACKET];
+        let windowed = isa.nonzero_mask(&live);
+        let in_slice = isa.nonzero_mask(&inside);
+        // The earliest crossing per lane in this slice, the entry of the
+        // cell it lies in (ties go to the cell entered first), and that
+        // cell.
+        let mut best_t = [f32::INFINITY; PACKET];
+        let mut best_tc = [f32::INFINITY; PACKET];
+        let mut best_cell = [UVec3::ZERO; PACKET];
         if in_slice != 0 {
+            let (lo_u, hi_u) = (reduce(lo_u, min_to), reduce(hi_u, max_to));
+            let (lo_v, hi_v) = (reduce(lo_v, min_to), reduce(hi_v, max_to));
             let cu0 = ((lo_u - RECT_MARGIN).floor() as i32).max(0);
             let cu1 = ((hi_u + RECT_MARGIN).floor() as i32).min(last[u]);
             let cv0 = ((lo_v - RECT_MARGIN).floor() as i32).max(0);
@@ -372,62 +384,51 @@ fn walk_group<V: Volume>(
                 cell[u] = cu;
                 for cv in cv0..=cv1 {
                     cell[v] = cv;
-                    let Some((masks, local)) = masks_of(cell) else {
+                    let Some(st) = state_of(cell) else {
                         continue;
                     };
-                    if !masks.straddles(local) {
+                    if !st.straddles {
                         // A cell wholly on one side: a hit at its entry for
                         // a lane arriving from the other side (a crossing
                         // on the face between cells, or in a sliver the
                         // lane grazed), as in the walk.
-                        let against = in_slice
-                            & if masks.above(local) {
-                                !side_bits
-                            } else {
-                                side_bits
-                            };
+                        let against = in_slice & if st.above { !side_bits } else { side_bits };
                         for l in lanes_of(against) {
                             let (tc, te) = lanes.span_in(l, cell.as_vec3());
-                            if tc <= te && tc < best[l].0 {
-                                best[l] = (tc, tc, cell.as_uvec3());
+                            if tc <= te && tc < best_t[l] {
+                                best_t[l] = tc;
+                                best_tc[l] = tc;
+                                best_cell[l] = cell.as_uvec3();
                             }
                         }
                         continue;
                     }
                     let corners = volume.corners(cell.as_uvec3());
                     // The cell's entry and exit along each lane: its planes'
-                    // parameters, as the DDA computes them (lane-wise, so
-                    // that the compiler can vectorise it).
+                    // parameters, as the DDA computes them; each lane's
+                    // cubic in the cell, and whether it is proven to stay on
+                    // the lane's side throughout (most cells a ray passes
+                    // clip the surface's cell without a crossing).
                     let c = cell.as_vec3();
                     let mut tc = [0.0f32; PACKET];
                     let mut te = [0.0f32; PACKET];
-                    let mut crosses = [false; PACKET];
+                    let mut crosses = [0u32; PACKET];
+                    let mut open = [0u32; PACKET];
+                    let mut cubic = [CellCubic::ZERO; PACKET];
                     for l in 0..PACKET {
                         let (tn, tf) = lanes.span_in(l, c);
                         tc[l] = tn;
                         te[l] = if tn > tf { tn } else { tf };
-                        crosses[l] = tn <= tf && tn < best[l].0;
-                    }
-                    // Each lane's cubic in the cell, and whether it is proven
-                    // to stay on the lane's side throughout (most cells a ray
-                    // passes clip the surface's cell without a crossing).
-                    let mut cubic = [CellCubic::ZERO; PACKET];
-                    let mut proven = [false; PACKET];
-                    for l in 0..PACKET {
+                        let cross = (in_slice >> l) & 1 != 0 && tn <= tf && tn < best_t[l];
+                        crosses[l] = cross as u32;
+                        steps[l] += cross as u64;
                         let origin = Vec3::new(lanes.o[0][l], lanes.o[1][l], lanes.o[2][l]);
                         let dir = Vec3::new(lanes.d[0][l], lanes.d[1][l], lanes.d[2][l]);
                         let p0 = origin + dir * tc[l] - c;
                         cubic[l] = CellCubic::new(&corners, p0, dir, iso);
-                        proven[l] = cubic[l].stays_on(side[l], te[l] - tc[l]);
+                        open[l] = (cross && !cubic[l].stays_on(side[l], te[l] - tc[l])) as u32;
                     }
-                    for l in lanes_of(in_slice) {
-                        if !crosses[l] {
-                            continue;
-                        }
-                        out[l].steps += 1;
-                        if proven[l] {
-                            continue;
-                        }
+                    for l in lanes_of(isa.nonzero_mask(&open)) {
                         let (tc, te, cubic) = (tc[l], te[l], cubic[l]);
                         let hit = if (cubic.eval(0.0) >= 0.0) != side[l] {
                             Some(tc)
@@ -436,38 +437,87 @@ fn walk_group<V: Volume>(
                             cubic.first_crossing(te - tc, tol).map(|dt| tc + dt)
                         };
                         if let Some(t) = hit
-                            && (t, tc) < (best[l].0, best[l].1)
+                            && (t, tc) < (best_t[l], best_tc[l])
                         {
-                            best[l] = (t, tc, cell.as_uvec3());
+                            best_t[l] = t;
+                            best_tc[l] = tc;
+                            best_cell[l] = cell.as_uvec3();
                         }
                     }
                 }
             }
         }
-        for l in lanes_of(active) {
-            let into = (s - start[l]) * step;
-            if into < 0 {
-                continue;
-            }
-            if best[l].0.is_finite() {
-                out[l].hit = Some((best[l].0, best[l].2));
-                active &= !(1 << l);
-            } else if tb[l] >= lanes.t1[l] || ta[l] > tb[l] {
-                // Left the part to search: no crossing.
-                active &= !(1 << l);
-            } else if into + 1 >= WINDOW {
-                let resumed = PacketRay {
-                    t0: tb[l],
-                    ..rays[l]
-                };
-                let steps = out[l].steps;
-                out[l] = alone(volume, skip, iso, &resumed, Some(side[l]));
-                out[l].steps += steps;
-                active &= !(1 << l);
-            }
+        // Each windowed lane: a hit; or it left the part to search (no
+        // crossing); or its window ends here and it goes on alone.
+        let mut found = [0u32; PACKET];
+        let mut left = [0u32; PACKET];
+        let mut expires = [0u32; PACKET];
+        for l in 0..PACKET {
+            found[l] = (best_t[l] < f32::INFINITY) as u32;
+            left[l] = (tb[l] >= lanes.t1[l] || ta[l] > tb[l]) as u32;
+            expires[l] = (into[l] + 1 >= WINDOW) as u32;
         }
+        let found = windowed & isa.nonzero_mask(&found);
+        let left = windowed & !found & isa.nonzero_mask(&left);
+        let expires = windowed & !found & !left & isa.nonzero_mask(&expires);
+        for l in lanes_of(found) {
+            out[l].hit = Some((best_t[l], best_cell[l]));
+        }
+        for l in lanes_of(expires) {
+            let resumed = PacketRay {
+                t0: tb[l],
+                ..rays[l]
+            };
+            out[l] = alone(volume, skip, iso, &resumed, Some(side[l]));
+            steps[l] += out[l].steps;
+        }
+        active &= !(found | left | expires);
         s += step;
     }
+    for l in lanes_of(started) {
+        out[l].steps = steps[l];
+    }
+}
+
+/// Cell `cell`'s state in the fine level `fine` (`None` in an empty
+/// macrocell); `shift`: the log2 of the macrocell side when that is a
+/// power of two, `stride`: the macrocell grid's index strides. A function
+/// the compiler inlines (a closure it kept out of line).
+#[inline(always)]
+fn cell_state(
+    fine: &IsoCells,
+    shift: Option<i32>,
+    stride: IVec3,
+    cell: IVec3,
+) -> Option<crate::accel::CellState> {
+    let m = fine.side() as i32;
+    let mc = match shift {
+        Some(sh) => cell >> IVec3::splat(sh),
+        None => cell / m,
+    };
+    let index = (mc * stride).element_sum() as usize;
+    fine.cell_state(index, (cell - mc * m).as_uvec3())
+}
+
+/// The lanes set in `mask`, lowest first: one step per set bit (a loop
+/// over all lanes testing each bit mispredicts the test).
+#[inline(always)]
+fn lanes_of(mask: u32) -> impl Iterator<Item = usize> {
+    let mut m = mask;
+    std::iter::from_fn(move || {
+        (m != 0).then(|| {
+            let l = m.trailing_zeros() as usize;
+            m &= m - 1;
+            l
+        })
+    })
+}
+
+/// The least (`f = min_to`) or greatest (`max_to`) of the lanes, as a tree.
+#[inline(always)]
+fn reduce(x: [f32; PACKET], f: fn(f32, f32) -> f32) -> f32 {
+    let x4: [f32; 4] = std::array::from_fn(|i| f(x[i], x[i + 4]));
+    f(f(x4[0], x4[2]), f(x4[1], x4[3]))
 }
 
 #[cfg(test)]
