@@ -239,6 +239,7 @@ fn walk_group<V: Volume, I: Isa>(
     let dims = volume.grid().dims;
     let last = (dims.max(UVec3::splat(2)) - UVec3::splat(2)).as_ivec3();
     let (u, v) = ((k + 1) % 3, (k + 2) % 3);
+    let last_a = last.to_array();
     let mut lanes = Lanes {
         o: [[0.0; PACKET]; 3],
         d: [[0.0; PACKET]; 3],
@@ -299,7 +300,7 @@ fn walk_group<V: Volume, I: Isa>(
         side_bits |= (side[l] as u32) << l;
         out[l].side = Some(side[l]);
         out[l].steps = 1;
-        start[l] = cell[k];
+        start[l] = cell.to_array()[k];
         active |= 1 << l;
     }
     if active == 0 {
@@ -317,7 +318,7 @@ fn walk_group<V: Volume, I: Isa>(
     }
     let mut s = lanes_of(active).map(|l| start[l] * step).min().unwrap_or(0) * step;
     while active != 0 {
-        if s < 0 || s > last[k] {
+        if s < 0 || s > last_a[k] {
             // Past the grid: the lanes still searching end without a hit.
             break;
         }
@@ -375,15 +376,19 @@ fn walk_group<V: Volume, I: Isa>(
             let (lo_u, hi_u) = (reduce(lo_u, min_to), reduce(hi_u, max_to));
             let (lo_v, hi_v) = (reduce(lo_v, min_to), reduce(hi_v, max_to));
             let cu0 = ((lo_u - RECT_MARGIN).floor() as i32).max(0);
-            let cu1 = ((hi_u + RECT_MARGIN).floor() as i32).min(last[u]);
+            let cu1 = ((hi_u + RECT_MARGIN).floor() as i32).min(last_a[u]);
             let cv0 = ((lo_v - RECT_MARGIN).floor() as i32).max(0);
-            let cv1 = ((hi_v + RECT_MARGIN).floor() as i32).min(last[v]);
-            let mut cell = IVec3::ZERO;
-            cell[k] = s;
+            let cv1 = ((hi_v + RECT_MARGIN).floor() as i32).min(last_a[v]);
+            // The cell's coordinates by axis in an array: a `glam` vector
+            // indexed by a run-time axis is a `match` on it (for shadow
+            // rays the axes change from packet to packet).
+            let mut at = [0i32; 3];
+            at[k] = s;
             for cu in cu0..=cu1 {
-                cell[u] = cu;
+                at[u] = cu;
                 for cv in cv0..=cv1 {
-                    cell[v] = cv;
+                    at[v] = cv;
+                    let cell = IVec3::from_array(at);
                     let Some(st) = state_of(cell) else {
                         continue;
                     };
