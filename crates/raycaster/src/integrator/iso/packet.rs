@@ -299,7 +299,6 @@ fn walk_group<V: Volume, I: Isa>(
         };
         side_bits |= (side[l] as u32) << l;
         out[l].side = Some(side[l]);
-        out[l].steps = 1;
         start[l] = cell.to_array()[k];
         active |= 1 << l;
     }
