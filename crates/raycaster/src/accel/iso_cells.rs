@@ -23,6 +23,8 @@ use crate::volume::{AnyVolume, Volume, VolumeVisitor};
 #[derive(Debug, Clone)]
 pub struct IsoCells {
     side: u32,
+    /// `log2(side)` when the side is a power of two.
+    shift: Option<u32>,
     /// Macrocells per axis.
     count: UVec3,
     words: usize,
@@ -78,7 +80,7 @@ impl CellMasks<'_> {
     /// keep it up to date instead of recomputing it.
     #[inline(always)]
     pub fn index(&self, local: UVec3) -> u32 {
-        (local.x * self.side + local.y) * self.side + local.z
+        bit_index(self.side, local)
     }
 
     /// [`CellMasks::straddles`] by bit index ([`CellMasks::index`]).
@@ -163,7 +165,7 @@ impl IsoCells {
                                 .fold((f32::INFINITY, f32::NEG_INFINITY), |(lo, hi), &v| {
                                     (lo.min(v), hi.max(v))
                                 });
-                            let b = ((x * m + y) * m + z) as usize;
+                            let b = bit_index(m, UVec3::new(x, y, z)) as usize;
                             let (w, bit) = (b >> 6, 1u64 << (b & 63));
                             if lo >= iso {
                                 above[w] |= bit;
@@ -176,6 +178,7 @@ impl IsoCells {
             });
         IsoCells {
             side: m,
+            shift: m.is_power_of_two().then(|| m.trailing_zeros()),
             count: n,
             words,
             slot,
@@ -210,17 +213,23 @@ impl IsoCells {
         })
     }
 
-    /// Local cell `local` of macrocell `index` as [`CellMasks::straddles`]
-    /// and [`CellMasks::above`] see it, `None` when the coarse level calls
-    /// the macrocell empty: the two bits without building the masks (a
-    /// packet of rays asks this of every cell across its rays).
+    /// Interpolation cell `cell` as [`CellMasks::straddles`] and
+    /// [`CellMasks::above`] see it, `None` when the coarse level calls its
+    /// macrocell empty: the two bits without building the masks (a packet
+    /// of rays asks this of every cell across its rays). Its macrocell by
+    /// a shift where the side is a power of two.
     #[inline(always)]
-    pub fn cell_state(&self, index: usize, local: UVec3) -> Option<CellState> {
-        let s = self.slot[index];
+    pub fn cell_state(&self, cell: UVec3) -> Option<CellState> {
+        let mc = match self.shift {
+            Some(sh) => cell >> sh,
+            None => cell / self.side,
+        };
+        let n = self.count;
+        let s = self.slot[((mc.x * n.y + mc.y) * n.z + mc.z) as usize];
         if s == u32::MAX {
             return None;
         }
-        let b = (local.x * self.side + local.y) * self.side + local.z;
+        let b = bit_index(self.side, cell - mc * self.side);
         let w = s as usize * 2 * self.words + (b >> 6) as usize;
         let bit = 1u64 << (b & 63);
         Some(CellState {
@@ -264,6 +273,13 @@ impl IsoCells {
             })
             .sum()
     }
+}
+
+/// The bit of local cell `local` in a macrocell of side `m`'s bit sets:
+/// `(x·m + y)·m + z`.
+#[inline(always)]
+fn bit_index(m: u32, local: UVec3) -> u32 {
+    (local.x * m + local.y) * m + local.z
 }
 
 /// The coordinates of the macrocell with index `i` in a grid of `n`
@@ -323,11 +339,11 @@ mod tests {
                                         straddles: m.straddles(local),
                                         above: m.above(local),
                                     };
-                                    assert_eq!(masks.cell_state(index, local), Some(state));
+                                    assert_eq!(masks.cell_state(cell), Some(state));
                                 }
                                 None => {
                                     assert!(!want, "cell {cell} in an empty macrocell");
-                                    assert_eq!(masks.cell_state(index, local), None);
+                                    assert_eq!(masks.cell_state(cell), None);
                                 }
                             }
                         }

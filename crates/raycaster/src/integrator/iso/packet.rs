@@ -250,21 +250,14 @@ fn walk_group<V: Volume, I: Isa>(
         t0: [f32::INFINITY; PACKET],
         t1: [f32::NEG_INFINITY; PACKET],
     };
-    let m = fine.side() as i32;
-    // The macrocell of a cell by a shift where the side allows.
-    let shift = (m as u32)
-        .is_power_of_two()
-        .then(|| m.trailing_zeros() as i32);
-    let count = fine.count().as_ivec3();
-    let stride = IVec3::new(count.y * count.z, count.z, 1);
-    // A cell's state in the fine level; `None` in an empty macrocell.
-    let state_of = |cell: IVec3| cell_state(fine, shift, stride, cell);
     // Per lane: its side of the iso value (also as bits), the slice it
     // starts in (its window is the `WINDOW` slices from there along
     // `step`), and whether it is still searching.
     let mut side = [false; PACKET];
     let mut side_bits = 0u32;
     let mut start = [0i32; PACKET];
+    // Cells visited per lane (the DDA's steps, as the scalar walk counts them).
+    let mut steps = [0u64; PACKET];
     let mut active = 0u32;
     for (l, r) in rays.iter().enumerate() {
         if group & (1 << l) == 0 {
@@ -289,7 +282,7 @@ fn walk_group<V: Volume, I: Isa>(
         // else the cubic's value at the start, as the walk computes it.
         let probe = r.ray.at(r.t0 + r.ray.nudge.min(0.5 * (r.t1 - r.t0)));
         let cell = probe.floor().as_ivec3().clamp(IVec3::ZERO, last);
-        side[l] = match state_of(cell) {
+        side[l] = match fine.cell_state(cell.as_uvec3()) {
             Some(st) if !st.straddles => st.above,
             _ => {
                 let corners = volume.corners(cell.as_uvec3());
@@ -299,6 +292,7 @@ fn walk_group<V: Volume, I: Isa>(
         };
         side_bits |= (side[l] as u32) << l;
         out[l].side = Some(side[l]);
+        steps[l] = 1;
         start[l] = cell.to_array()[k];
         active |= 1 << l;
     }
@@ -311,10 +305,6 @@ fn walk_group<V: Volume, I: Isa>(
     // over the lanes: only the rare per-lane events (a crossing to solve, a
     // lane done) loop over lanes.
     let started = active;
-    let mut steps = [0u64; PACKET];
-    for l in lanes_of(started) {
-        steps[l] = 1;
-    }
     let mut s = lanes_of(active).map(|l| start[l] * step).min().unwrap_or(0) * step;
     while active != 0 {
         if s < 0 || s > last_a[k] {
@@ -388,7 +378,7 @@ fn walk_group<V: Volume, I: Isa>(
                 for cv in cv0..=cv1 {
                     at[v] = cv;
                     let cell = IVec3::from_array(at);
-                    let Some(st) = state_of(cell) else {
+                    let Some(st) = fine.cell_state(cell.as_uvec3()) else {
                         continue;
                     };
                     if !st.straddles {
@@ -481,26 +471,6 @@ fn walk_group<V: Volume, I: Isa>(
     for l in lanes_of(started) {
         out[l].steps = steps[l];
     }
-}
-
-/// Cell `cell`'s state in the fine level `fine` (`None` in an empty
-/// macrocell); `shift`: the log2 of the macrocell side when that is a
-/// power of two, `stride`: the macrocell grid's index strides. A function
-/// the compiler inlines (a closure it kept out of line).
-#[inline(always)]
-fn cell_state(
-    fine: &IsoCells,
-    shift: Option<i32>,
-    stride: IVec3,
-    cell: IVec3,
-) -> Option<crate::accel::CellState> {
-    let m = fine.side() as i32;
-    let mc = match shift {
-        Some(sh) => cell >> IVec3::splat(sh),
-        None => cell / m,
-    };
-    let index = (mc * stride).element_sum() as usize;
-    fine.cell_state(index, (cell - mc * m).as_uvec3())
 }
 
 /// The lanes set in `mask`, lowest first: one step per set bit (a loop
