@@ -110,6 +110,32 @@ impl Aabb {
         (inside && t.0 <= t.1).then_some(t)
     }
 
+    /// [`Aabb::intersect`] for rays from `origin` along `dir[axis][lane]`,
+    /// lane by lane: the entry and exit parameters (`entry <= exit` when
+    /// the lane's ray meets the box), the same bits as `intersect` gives,
+    /// for all lanes at once. No direction component may be 0 (`intersect`
+    /// treats those apart).
+    #[inline(always)]
+    pub fn intersect_lanes<const N: usize>(
+        &self,
+        origin: Vec3,
+        dir: &[[f32; N]; 3],
+    ) -> ([f32; N], [f32; N]) {
+        let mut t0 = [0.0f32; N];
+        let mut t1 = [f32::INFINITY; N];
+        for a in 0..3 {
+            let (o, lo, hi) = (origin[a], self.min[a], self.max[a]);
+            for l in 0..N {
+                let inv = 1.0 / dir[a][l];
+                let (a0, a1) = ((lo - o) * inv, (hi - o) * inv);
+                let (near, far) = if a0 < a1 { (a0, a1) } else { (a1, a0) };
+                t0[l] = if near > t0[l] { near } else { t0[l] };
+                t1[l] = if far < t1[l] { far } else { t1[l] };
+            }
+        }
+        (t0, t1)
+    }
+
     /// The exit parameter of a ray known to start inside the box.
     #[inline]
     pub fn exit(&self, origin: impl Into<Vec3A>, inv_dir: impl Into<Vec3A>) -> f32 {

@@ -12,6 +12,8 @@
 //! surface it is on. Only occupied macrocells are visited, so a new iso
 //! value costs a pass over the surface's macrocells, not over the volume.
 
+use std::sync::OnceLock;
+
 use glam::UVec3;
 use rayon::prelude::*;
 
@@ -35,6 +37,9 @@ pub struct IsoCells {
     /// at or above the iso value; bit `(x·m + y)·m + z` is local cell
     /// `(x, y, z)`.
     bits: Vec<u64>,
+    /// [`IsoCells::straddling_cells`], listed on first use: the proxy
+    /// depths draw them for every frame.
+    straddling: OnceLock<Vec<UVec3>>,
 }
 
 /// The bit sets of one occupied macrocell.
@@ -183,6 +188,7 @@ impl IsoCells {
             words,
             slot,
             bits,
+            straddling: OnceLock::new(),
         }
     }
 
@@ -239,8 +245,12 @@ impl IsoCells {
     }
 
     /// The lower corners of the interpolation cells that straddle the iso
-    /// value, macrocell by macrocell.
-    pub fn straddling_cells(&self) -> Vec<UVec3> {
+    /// value, macrocell by macrocell (listed once, then kept).
+    pub fn straddling_cells(&self) -> &[UVec3] {
+        self.straddling.get_or_init(|| self.list_straddling_cells())
+    }
+
+    fn list_straddling_cells(&self) -> Vec<UVec3> {
         let (m, n) = (self.side, self.count);
         let mut out = Vec::with_capacity(self.straddling_count());
         for (i, &s) in self.slot.iter().enumerate() {

@@ -330,7 +330,7 @@ pub struct FrameContext<'a, V: Volume> {
     /// Per light of [`FrameContext::lights`] (or none at all): how far
     /// its shadow rays can meet a cell that can hold the surface, which
     /// ends their walks early (`None`: walk to the volume's edge).
-    pub light_proxies: &'a [Option<crate::render::proxy::LightProxy>],
+    pub light_proxies: &'a [Option<std::sync::Arc<crate::render::proxy::LightProxy>>],
     /// How [`RenderMode::Iso`] finds its normals.
     pub iso_normals: IsoNormals,
     /// Divisor of [`RenderMode::Avg`].

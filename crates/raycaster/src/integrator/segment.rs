@@ -82,27 +82,7 @@ impl RaySegment {
         // j = 0 gives t0 = t_in exactly: the unjittered samples.
         let t0 = t_in + jitter * step;
         let inv_step = 1.0 / step;
-        // Number of k with t0 + k·s <= t_out, computed as the renderers will.
-        let count = if t0 > t_out {
-            0
-        } else {
-            // An estimate (a multiplication: a division here would sit on
-            // every ray's critical path), made exact below.
-            let mut last = ((t_out - t0) * inv_step).floor().max(0.0) as u32;
-            // The estimate is almost always right: test it once before
-            // looping (a bare loop is vectorised into a search whose set-up
-            // costs every ray more than the loop ever runs).
-            if last > 0 && t0 + last as f32 * step > t_out {
-                last -= 1;
-                while last > 0 && t0 + last as f32 * step > t_out {
-                    last -= 1;
-                }
-            }
-            while t0 + (last + 1) as f32 * step <= t_out {
-                last += 1;
-            }
-            last + 1
-        };
+        let count = sample_count(t0, t_out, step, last_estimate(t0, t_out, inv_step));
         let dir = ray.dir / grid.spacing;
         let mut seg = RaySegment {
             origin: grid.world_to_voxel(ray.origin),
@@ -127,6 +107,53 @@ impl RaySegment {
             seg.t_out = seg.t_out.min(b);
         }
         Some(seg)
+    }
+
+    /// [`RaySegment::with`] without clipping for the rays from `origin`
+    /// along the unit directions `dir[axis][lane]` whose box intervals
+    /// `(t_in, t_out)` are known ([`Aabb::intersect_lanes`]), lane by lane:
+    /// the same bits as `with` gives, with the divisions done for all lanes
+    /// at once. Only the lanes whose ray meets the box (`t_in <= t_out`)
+    /// mean anything.
+    ///
+    /// [`Aabb::intersect_lanes`]: crate::geometry::Aabb::intersect_lanes
+    #[inline(always)]
+    pub fn lanes<const N: usize>(
+        grid: &Grid,
+        origin: Vec3,
+        dir: &[[f32; N]; 3],
+        (t_in, t_out): (&[f32; N], &[f32; N]),
+        step: f32,
+        jitter: &[f32; N],
+    ) -> [Self; N] {
+        let inv_step = 1.0 / step;
+        let mut t0 = [0.0f32; N];
+        let mut last = [0.0f32; N];
+        let mut vdir = [[0.0f32; N]; 3];
+        let mut inv = [[0.0f32; N]; 3];
+        for l in 0..N {
+            t0[l] = t_in[l] + jitter[l] * step;
+            last[l] = last_estimate(t0[l], t_out[l], inv_step);
+            for a in 0..3 {
+                vdir[a][l] = dir[a][l] / grid.spacing[a];
+                inv[a][l] = 1.0 / vdir[a][l];
+            }
+        }
+        let origin = grid.world_to_voxel(origin);
+        let at = |v: &[[f32; N]; 3], l: usize| Vec3::new(v[0][l], v[1][l], v[2][l]);
+        std::array::from_fn(|l| RaySegment {
+            origin,
+            dir: at(&vdir, l),
+            inv_dir: at(&inv, l),
+            world_dir: at(dir, l),
+            t_in: t_in[l],
+            t_out: t_out[l],
+            t0: t0[l],
+            step,
+            inv_step,
+            first: 0,
+            count: sample_count(t0[l], t_out[l], step, last[l]),
+        })
     }
 
     /// The ray clipped to the grid's box but keeping no sample (`None` when
@@ -183,4 +210,35 @@ impl RaySegment {
         let k = x as u32;
         k + ((k as f32) < x) as u32
     }
+}
+
+/// An estimate of the index of the last sample `t0 + k·s <= t_out` (a
+/// multiplication by `1/s`: a division here would sit on every ray's
+/// critical path), made exact by [`sample_count`].
+#[inline(always)]
+fn last_estimate(t0: f32, t_out: f32, inv_step: f32) -> f32 {
+    ((t_out - t0) * inv_step).floor().max(0.0)
+}
+
+/// The number of `k` with `t0 + k·s <= t_out` (`s` = `step`), computed as
+/// the renderers will, from `last`, [`last_estimate`]'s.
+#[inline(always)]
+fn sample_count(t0: f32, t_out: f32, step: f32, last: f32) -> u32 {
+    if t0 > t_out {
+        return 0;
+    }
+    let mut last = last as u32;
+    // The estimate is almost always right: test it once before looping (a
+    // bare loop is vectorised into a search whose set-up costs every ray
+    // more than the loop ever runs).
+    if last > 0 && t0 + last as f32 * step > t_out {
+        last -= 1;
+        while last > 0 && t0 + last as f32 * step > t_out {
+            last -= 1;
+        }
+    }
+    while t0 + (last + 1) as f32 * step <= t_out {
+        last += 1;
+    }
+    last + 1
 }

@@ -7,7 +7,7 @@
 use std::sync::Arc;
 
 use super::proxy::{LightProxy, ProxyDepth};
-use crate::accel::SkipGrid;
+use crate::accel::{IsoCells, SkipGrid};
 use crate::camera::{Camera, CameraFrame, PixelRect};
 use crate::clip::ClipRegion;
 use crate::error::{Error, Result};
@@ -42,7 +42,17 @@ const PLAN_CACHE_ENTRIES: usize = 6;
 pub struct PlanCache {
     /// Most recently used first.
     entries: Vec<(PlanKey, Arc<(TfLut, SkipGrid)>)>,
+    /// Lights' proxies, most recently used first, by the tables whose
+    /// surface they were drawn for (compared by identity; holding the `Arc`
+    /// keeps its address from being reused) and the light's direction.
+    lights: Vec<(Prepared, [u32; 3], Option<Arc<LightProxy>>)>,
 }
+
+/// A frame's tabulated TF and skip grid, shared between frames.
+type Prepared = Arc<(TfLut, SkipGrid)>;
+
+/// How many lights' proxies a [`PlanCache`] keeps (each up to a few MB).
+const LIGHT_CACHE_ENTRIES: usize = 4;
 
 impl PlanCache {
     /// The LUT and skip grid for this scene, TF, step and mode.
@@ -87,6 +97,40 @@ impl PlanCache {
         let v = Arc::new((lut, skip));
         self.entries.insert(0, (key, v.clone()));
         v
+    }
+
+    /// The proxy of the light towards `light` (unit) for the surface of the
+    /// fine level `cells` of `prepared`'s skip grid (on `grid`), drawn on
+    /// first use and kept while that surface and light stay in use: shadow
+    /// rays towards a fixed light (a turntable, an animation, a viewer
+    /// whose light stays put) need it drawn once, not for every frame.
+    pub(crate) fn light_proxy(
+        &mut self,
+        prepared: &Prepared,
+        light: glam::Vec3,
+        grid: &crate::volume::Grid,
+        cells: &IsoCells,
+    ) -> Option<Arc<LightProxy>> {
+        let bits = light.to_array().map(f32::to_bits);
+        let found = self
+            .lights
+            .iter()
+            .position(|(p, b, _)| Arc::ptr_eq(p, prepared) && *b == bits);
+        let entry = match found {
+            Some(i) => self.lights.remove(i),
+            None => {
+                // Tables no longer cached are never used again.
+                let entries = &self.entries;
+                self.lights
+                    .retain(|(p, ..)| entries.iter().any(|(_, e)| Arc::ptr_eq(p, e)));
+                self.lights.truncate(LIGHT_CACHE_ENTRIES - 1);
+                let proxy = LightProxy::build(light, grid, cells).map(Arc::new);
+                (prepared.clone(), bits, proxy)
+            }
+        };
+        let proxy = entry.2.clone();
+        self.lights.insert(0, entry);
+        proxy
     }
 
     /// How many tables are cached.
@@ -189,7 +233,7 @@ pub struct FramePlan {
     /// With shadows in exact iso mode with empty-space skipping: per light
     /// (in the order of [`FramePlan::lights`]), how far its shadow rays
     /// can meet a cell that can hold the surface (`None`: the whole way).
-    pub light_proxies: Vec<Option<LightProxy>>,
+    pub light_proxies: Vec<Option<Arc<LightProxy>>>,
 }
 
 impl FramePlan {
@@ -280,8 +324,10 @@ impl FramePlan {
     /// Draws the frame's proxy depths ([`FramePlan::proxy`]) when the
     /// frame is exact iso with skipping, and with shadows its lights'
     /// ([`FramePlan::light_proxies`]); the frame driver calls it for the
-    /// rays it casts from the camera.
-    pub fn draw_proxy(&mut self, scene: &Scene, options: &RenderOptions) {
+    /// rays it casts from the camera. A light's proxy depends on the light
+    /// and the surface only, not on the camera: it is kept in `cache` for
+    /// the next frames.
+    pub fn draw_proxy(&mut self, cache: &mut PlanCache, scene: &Scene, options: &RenderOptions) {
         self.proxy = None;
         self.light_proxies = Vec::new();
         let Some(cells) = self.prepared.1.iso_cells() else {
@@ -298,7 +344,7 @@ impl FramePlan {
             self.light_proxies = self
                 .lights
                 .iter()
-                .map(|&l| LightProxy::build(l, grid, cells))
+                .map(|&l| cache.light_proxy(&self.prepared, l, grid, cells))
                 .collect();
         }
     }
@@ -392,5 +438,72 @@ mod tests {
         let other = Scene::new(AnyVolume::from_fn(grid, |v| (v.y * 30) as u8));
         cache.get(&other, &tf, 0.5, &options, None);
         assert_eq!(cache.len(), 1);
+    }
+
+    /// A light's proxy is drawn once for a surface and light and found
+    /// again for the next frames, the same as a fresh one; another light,
+    /// another iso value or dropped tables draw it anew, and the cache
+    /// stays bounded. A second frame (with the cached proxy) is the first's.
+    #[test]
+    fn lights_proxies_are_kept_for_their_surface_and_light() {
+        use crate::camera::Camera;
+        use crate::integrator::RenderMode;
+        use crate::render::{Renderer, SerialRenderer};
+        let grid = Grid::new(UVec3::new(24, 20, 22), Vec3::new(1.0, 0.8, 1.2));
+        let centre = grid.extent() * 0.5;
+        let scene = Scene::new(AnyVolume::from_fn(grid, |v| {
+            let p = v.as_vec3() * grid.spacing;
+            (p - centre).length().min(p.y - 2.0 + 6.0)
+        }));
+        let tf = TransferFunction::preset("ramp", crate::sample::SampleType::F32).unwrap();
+        let options = RenderOptions {
+            mode: RenderMode::Iso,
+            iso_value: 6.0,
+            lights: vec![Vec3::new(0.3, 1.0, 0.2)],
+            shadows: true,
+            ..RenderOptions::default()
+        };
+        let mut cache = PlanCache::default();
+        let prepared = cache.get(&scene, &tf, 0.5, &options, None);
+        let cells = prepared.1.iso_cells().unwrap();
+        let light = Vec3::new(0.6, 1.0, 0.4).normalize();
+        let first = cache.light_proxy(&prepared, light, &grid, cells).unwrap();
+        let again = cache.light_proxy(&prepared, light, &grid, cells).unwrap();
+        assert!(Arc::ptr_eq(&first, &again));
+        let fresh = LightProxy::build(light, &grid, cells).unwrap();
+        let mut rng = fastrand::Rng::with_seed(4);
+        for _ in 0..500 {
+            let p = Vec3::new(rng.f32(), rng.f32(), rng.f32()) * grid.extent();
+            assert_eq!(first.reach(p).to_bits(), fresh.reach(p).to_bits());
+        }
+        // Other lights, up to the bound: the first is then drawn anew.
+        for k in 0..LIGHT_CACHE_ENTRIES {
+            let other = Vec3::new(k as f32 * 0.1, 1.0, -0.5).normalize();
+            assert!(!Arc::ptr_eq(
+                &cache.light_proxy(&prepared, other, &grid, cells).unwrap(),
+                &first
+            ));
+        }
+        assert!(cache.lights.len() <= LIGHT_CACHE_ENTRIES);
+        let redrawn = cache.light_proxy(&prepared, light, &grid, cells).unwrap();
+        assert!(!Arc::ptr_eq(&redrawn, &first));
+        // Another iso value: other tables, another proxy.
+        let iso7 = RenderOptions {
+            iso_value: 7.0,
+            ..options.clone()
+        };
+        let other = cache.get(&scene, &tf, 0.5, &iso7, None);
+        let cells7 = other.1.iso_cells().unwrap();
+        assert!(!Arc::ptr_eq(
+            &cache.light_proxy(&other, light, &grid, cells7).unwrap(),
+            &redrawn
+        ));
+        // Two frames of one renderer, the second with the cached proxy.
+        let camera = Camera::look_at(centre + Vec3::new(5.0, 30.0, 40.0), centre, 64, 48);
+        let mut renderer = SerialRenderer::new();
+        let a = renderer.render(&scene, &camera, &tf, &options).unwrap();
+        let b = renderer.render(&scene, &camera, &tf, &options).unwrap();
+        assert_eq!(a.rgb, b.rgb);
+        assert!(a.stats.covered > 500);
     }
 }
