@@ -37,9 +37,8 @@ pub struct IsoCells {
     /// at or above the iso value; bit `(x·m + y)·m + z` is local cell
     /// `(x, y, z)`.
     bits: Vec<u64>,
-    /// [`IsoCells::straddling_cells`], listed on first use: the proxy
-    /// depths draw them for every frame.
-    straddling: OnceLock<Vec<UVec3>>,
+    /// [`IsoCells::straddling_runs`], listed on first use.
+    straddling: OnceLock<Vec<(UVec3, u32)>>,
 }
 
 /// The bit sets of one occupied macrocell.
@@ -244,28 +243,57 @@ impl IsoCells {
         })
     }
 
-    /// The lower corners of the interpolation cells that straddle the iso
-    /// value, macrocell by macrocell (listed once, then kept).
-    pub fn straddling_cells(&self) -> &[UVec3] {
-        self.straddling.get_or_init(|| self.list_straddling_cells())
+    /// The interpolation cells that straddle the iso value as runs along
+    /// z: the lower corner of a run's first cell and the number of cells
+    /// in it (consecutive along z, within one macrocell), macrocell by
+    /// macrocell; listed on first use, then kept. A run is one box to the
+    /// proxy depths, which draw it for every frame: a surface's shell of
+    /// straddling cells holds about half as many runs as cells.
+    pub fn straddling_runs(&self) -> &[(UVec3, u32)] {
+        self.straddling.get_or_init(|| self.list_straddling_runs())
     }
 
-    fn list_straddling_cells(&self) -> Vec<UVec3> {
+    /// The lower corners of the interpolation cells that straddle the iso
+    /// value ([`IsoCells::straddling_runs`] cell by cell).
+    pub fn straddling_cells(&self) -> impl Iterator<Item = UVec3> + '_ {
+        self.straddling_runs()
+            .iter()
+            .flat_map(|&(c, n)| (0..n).map(move |z| c + UVec3::new(0, 0, z)))
+    }
+
+    fn list_straddling_runs(&self) -> Vec<(UVec3, u32)> {
         let (m, n) = (self.side, self.count);
-        let mut out = Vec::with_capacity(self.straddling_count());
+        let mut out = Vec::new();
         for (i, &s) in self.slot.iter().enumerate() {
             if s == u32::MAX {
                 continue;
             }
             let origin = macrocell_of(i as u32, n) * m;
+            let local = |b: u32| origin + UVec3::new(b / (m * m), (b / m) % m, b % m);
+            // The run being gathered: its first bit and length.
+            let mut run: Option<(u32, u32)> = None;
             let at = s as usize * 2 * self.words;
             for (w, &word) in self.bits[at..at + self.words].iter().enumerate() {
                 let mut bits = word;
                 while bits != 0 {
                     let b = w as u32 * 64 + bits.trailing_zeros();
                     bits &= bits - 1;
-                    out.push(origin + UVec3::new(b / (m * m), (b / m) % m, b % m));
+                    run = match run {
+                        // The next cell along z in the same row.
+                        Some((first, len)) if b == first + len && !b.is_multiple_of(m) => {
+                            Some((first, len + 1))
+                        }
+                        _ => {
+                            if let Some((first, len)) = run {
+                                out.push((local(first), len));
+                            }
+                            Some((b, 1))
+                        }
+                    };
                 }
+            }
+            if let Some((first, len)) = run {
+                out.push((local(first), len));
             }
         }
         out
@@ -361,11 +389,17 @@ mod tests {
                 }
                 assert!(straddling > 0);
                 assert_eq!(masks.straddling_count(), straddling);
-                let mut got: Vec<[u32; 3]> = masks
-                    .straddling_cells()
-                    .iter()
-                    .map(|c| c.to_array())
-                    .collect();
+                let mut got: Vec<[u32; 3]> =
+                    masks.straddling_cells().map(|c| c.to_array()).collect();
+                // Runs are maximal: the cell after a run's last along z is
+                // not straddling, or in another macrocell.
+                for &(c, len) in masks.straddling_runs() {
+                    let next = c + UVec3::new(0, 0, len);
+                    assert!(len >= 1 && (c.z % side) + len <= side);
+                    if !next.z.is_multiple_of(side) {
+                        assert!(!masks.cell_state(next).is_some_and(|st| st.straddles));
+                    }
+                }
                 got.sort_unstable();
                 assert_eq!(got, listed, "side {side}, iso {iso}");
             }

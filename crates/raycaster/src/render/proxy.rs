@@ -5,15 +5,19 @@
 //! over empty macrocells, stepping through cells wholly on one side of the
 //! iso value. A crossing can only lie in a cell whose corners straddle the
 //! iso value, and those cells are few (a shell a cell or two thick around
-//! the surface). So before the rays are cast every straddling cell's box is
-//! drawn into a per-pixel buffer, like the proxy geometry GPU ray casters
-//! rasterise to find where rays start: over the bounding rectangle of its
-//! projected corners, at a depth no ray can enter it before (the eye's
-//! distance to the box). A ray then begins its walk at its pixel's depth,
-//! and a pixel no box covers cannot hit at all. Both are conservative, so
-//! the hits are the walk's own; a ray starts at most about a cell early,
-//! and only rays passing within a pixel of the surface's silhouette are
-//! walked in vain.
+//! the surface). So before the rays are cast the straddling cells' boxes
+//! are drawn into a per-pixel buffer, like the proxy geometry GPU ray
+//! casters rasterise to find where rays start: over the bounding rectangle
+//! of a box's projected corners, at a depth no ray can enter it before (the
+//! eye's distance to the box). A ray then begins its walk at its pixel's
+//! depth, and a pixel no box covers cannot hit at all. Both are
+//! conservative, so the hits are the walk's own; a ray starts at most
+//! about a box early, and only rays passing within a pixel of the
+//! surface's silhouette are walked in vain. A box is a run of straddling
+//! cells along z ([`IsoCells::straddling_runs`]): half as many boxes to
+//! draw as cells, for a rectangle and a depth that are nearly the cells'
+//! own (seen along the run, its first cell hides the others; seen across
+//! it, its cells lie side by side at about one depth).
 //!
 //! The boxes are grown by [`MARGIN`] voxels, far more than the rounding of
 //! a ray's position, so a ray that grazes a straddling cell, which the walk
@@ -63,7 +67,7 @@ pub struct ProxyDepth {
     /// Per block of `BLOCK`×`BLOCK` pixels of `rect`, row-major: the
     /// minimum over the block's pixels.
     depth: Vec<f32>,
-    /// How many cell boxes were drawn.
+    /// How many boxes (runs of cells) were drawn.
     boxes: usize,
 }
 
@@ -95,16 +99,17 @@ impl ProxyDepth {
                 boxes: 0,
             };
         }
-        let corners = cells.straddling_cells();
+        let runs = cells.straddling_runs();
         let grow = Vec3::splat(MARGIN);
-        // Each box's blocks: those its pixels' rectangle touches; its
-        // depth: a lower bound on where any ray enters it.
-        let rects: Vec<(PixelRect, f32)> = corners
+        // Each box (a run of cells along z) its blocks: those its pixels'
+        // rectangle touches; its depth: a lower bound on where any ray
+        // enters it.
+        let rects: Vec<(PixelRect, f32)> = runs
             .par_iter()
-            .filter_map(|&c| {
+            .filter_map(|&(c, len)| {
                 let c = c.as_vec3();
                 let lo = grid.voxel_to_world(c - grow);
-                let hi = grid.voxel_to_world(c + Vec3::ONE + grow);
+                let hi = grid.voxel_to_world(c + Vec3::new(1.0, 1.0, len as f32) + grow);
                 let r = frame.box_rect(lo, hi)?.intersect(&rect);
                 if r.is_empty() {
                     return None;
@@ -145,7 +150,7 @@ impl ProxyDepth {
             rect,
             width: w,
             depth,
-            boxes: corners.len(),
+            boxes: runs.len(),
         }
     }
 
@@ -161,7 +166,7 @@ impl ProxyDepth {
         self.depth[(y * self.width + x) as usize]
     }
 
-    /// How many cell boxes were drawn.
+    /// How many boxes (runs of straddling cells) were drawn.
     pub fn boxes(&self) -> usize {
         self.boxes
     }
@@ -294,7 +299,6 @@ mod tests {
     fn grown_boxes(grid: &Grid, cells: &IsoCells) -> Vec<Aabb> {
         cells
             .straddling_cells()
-            .iter()
             .map(|c| {
                 let c = c.as_vec3();
                 Aabb::new(
@@ -326,7 +330,8 @@ mod tests {
             let frame = cam.frame().unwrap();
             let rect = frame.screen_rect(&grid.bounds());
             let proxy = ProxyDepth::build(&frame, rect, &grid, cells);
-            assert_eq!(proxy.boxes(), boxes.len());
+            assert_eq!(proxy.boxes(), cells.straddling_runs().len());
+            assert!(proxy.boxes() < boxes.len());
             let (mut covered, mut culled) = (0, 0);
             for j in 0..40 {
                 for i in 0..48 {
