@@ -110,9 +110,45 @@ pub(crate) fn powi(mut x: f32, n: i32) -> f32 {
     if recip { 1.0 / r } else { r }
 }
 
+/// [`powi`] of every lane of `x`, the lanes' products in [`powi`]'s order
+/// (so the same bits), with the exponent's loop once for all lanes.
+#[inline(always)]
+pub(crate) fn powi_lanes<const N: usize>(mut x: [f32; N], n: i32) -> [f32; N] {
+    let mut b = n.unsigned_abs();
+    let mut r = [1.0f32; N];
+    loop {
+        if b & 1 != 0 {
+            for (r, x) in r.iter_mut().zip(&x) {
+                *r *= x;
+            }
+        }
+        b /= 2;
+        if b == 0 {
+            break;
+        }
+        for x in &mut x {
+            *x *= *x;
+        }
+    }
+    if n < 0 { r.map(|r| 1.0 / r) } else { r }
+}
+
 #[cfg(test)]
 mod tests {
-    use super::powi;
+    use super::{powi, powi_lanes};
+
+    #[test]
+    fn powi_lanes_is_powi_lane_by_lane() {
+        let mut rng = fastrand::Rng::with_seed(8);
+        for _ in 0..2_000 {
+            let x: [f32; 8] = std::array::from_fn(|_| rng.f32() * 2.0);
+            let n = rng.i32(-40..=200);
+            let lanes = powi_lanes(x, n);
+            for (l, &v) in lanes.iter().enumerate() {
+                assert_eq!(v.to_bits(), powi(x[l], n).to_bits(), "{}^{n}", x[l]);
+            }
+        }
+    }
 
     #[test]
     fn powi_is_f32_powi() {

@@ -638,4 +638,115 @@ mod tests {
         .unwrap();
         assert_eq!(checker.schedule().blocks, blocks);
     }
+
+    /// A schedule that integrates each block's rays as a packet and checks
+    /// that resolving them together ([`Integrator::resolve_packet`]) gives,
+    /// to the bit, what resolving each alone ([`Integrator::resolve`])
+    /// gives.
+    #[derive(Default)]
+    struct CheckPackets {
+        covered: usize,
+    }
+
+    impl Schedule for CheckPackets {
+        const NAME: &'static str = "check-packets";
+
+        fn threads(&self) -> usize {
+            1
+        }
+
+        fn run<V: Volume, I: Integrator>(
+            &mut self,
+            job: &FrameJob<'_, V>,
+            _film: &mut Film,
+        ) -> Option<u64> {
+            const N: usize = BLOCK;
+            let rect = job.plan.rect;
+            let mut scratch = I::Scratch::default();
+            for by in (rect.y0..rect.y1).step_by(PACKET_H as usize) {
+                for bx in (rect.x0..rect.x1).step_by(PACKET_W as usize) {
+                    let mut segs = [RaySegment::default(); N];
+                    let mut n = 0;
+                    for j in by..(by + PACKET_H).min(rect.y1) {
+                        for i in bx..(bx + PACKET_W).min(rect.x1) {
+                            if let PixelRay::Searched(seg) = job.pixel(i, j) {
+                                segs[n] = seg;
+                                n += 1;
+                            }
+                        }
+                    }
+                    let mut rays = [I::default(); N];
+                    I::integrate_packet(&job.ctx, &mut rays[..n], &segs[..n]);
+                    let mut together = [Vec4::ZERO; N];
+                    I::resolve_packet(&rays[..n], &job.ctx, &mut scratch, &mut together[..n]);
+                    for (ray, c) in rays[..n].iter().zip(&together) {
+                        let alone = ray.resolve(&job.ctx);
+                        assert_eq!(
+                            c.to_array().map(f32::to_bits),
+                            alone.to_array().map(f32::to_bits)
+                        );
+                        self.covered += (alone.w > 0.0) as usize;
+                    }
+                }
+            }
+            Some(0)
+        }
+    }
+
+    /// Exact iso packets shade (normals, lights, shadow rays) as their rays
+    /// shade one by one: with a headlight, with lights, with shadows, with
+    /// analytic normals, with a mirror bounce.
+    #[test]
+    fn packets_resolve_as_their_rays_resolve_alone() {
+        use crate::integrator::IsoNormals;
+        let grid = Grid::new(UVec3::new(26, 22, 24), Vec3::new(1.0, 0.8, 1.2));
+        let centre = grid.extent() * 0.5;
+        let scene = Scene::new(AnyVolume::from_fn(grid, |v| {
+            let p = v.as_vec3() * grid.spacing;
+            let bumps = 1.5 * (0.9 * p.x).sin() * (0.7 * p.z).cos();
+            ((p - centre).length() + bumps).min(p.y - 3.0 + 6.0)
+        }));
+        let tf = TransferFunction::preset("ramp", crate::sample::SampleType::F32).unwrap();
+        let lights = vec![Vec3::new(0.3, 1.0, 0.2), Vec3::new(-1.0, 0.4, 0.3)];
+        let base = RenderOptions {
+            mode: RenderMode::Iso,
+            iso_value: 6.0,
+            ..RenderOptions::default()
+        };
+        let configs = [
+            base.clone(),
+            RenderOptions {
+                lights: lights.clone(),
+                ..base.clone()
+            },
+            RenderOptions {
+                lights: lights.clone(),
+                shadows: true,
+                ..base.clone()
+            },
+            RenderOptions {
+                lights: lights.clone(),
+                shadows: true,
+                iso_normals: IsoNormals::Analytic,
+                ..base.clone()
+            },
+            RenderOptions {
+                lights,
+                reflection: 0.3,
+                ..base.clone()
+            },
+            RenderOptions {
+                shading: false,
+                ..base
+            },
+        ];
+        let mut checker = FrameRenderer::with_schedule(CheckPackets::default());
+        for (k, options) in configs.iter().enumerate() {
+            let eye = centre + Vec3::new(20.0 - 9.0 * k as f32, 25.0, 30.0);
+            let camera = Camera::look_at(eye, centre, 61, 47);
+            let before = checker.schedule().covered;
+            crate::render::Renderer::render(&mut checker, &scene, &camera, &tf, options).unwrap();
+            assert!(checker.schedule().covered - before > 300, "{k}");
+        }
+    }
 }

@@ -29,6 +29,7 @@ pub(crate) use packet::{PACKET_H, PACKET_W};
 
 use glam::{IVec3, UVec3, Vec3, Vec3A, Vec4};
 
+use super::shading::powi_lanes;
 use super::{Fragment, FrameContext, Integrator, Occupancy, RaySegment, Span, integrate_each};
 use crate::accel::{CellClass, CellMasks, IsoCells, SkipGrid};
 use crate::geometry::{Aabb, max_to, min_to};
@@ -233,23 +234,67 @@ impl Integrator for IsoState {
         out: &mut [Vec4],
     ) {
         let casts = ctx.shading.is_some() && ctx.shadows && !ctx.lights.is_empty();
-        let Some(fine) = packet_cells(ctx).filter(|_| casts && rays.len() <= packet::PACKET) else {
-            for (ray, c) in rays.iter().zip(out) {
-                *c = ray.resolve_in(ctx, cache);
+        let fine = packet_cells(ctx).filter(|_| casts && rays.len() <= packet::PACKET);
+        // Lane-wise normals and lights where nothing is one ray's own (a
+        // mirror bounce, shadow rays beyond the cached lights').
+        let lane_wise = ctx.shading.is_some()
+            && ctx.reflection <= 0.0
+            && ctx.lights.len() <= CACHED_LIGHTS
+            && rays.len() <= packet::PACKET
+            && (!casts || fine.is_some());
+        if !lane_wise {
+            if let Some(fine) = fine {
+                let mut normals = [None; packet::PACKET];
+                for (ray, n) in rays.iter().zip(&mut normals) {
+                    if let Some(hit) = &ray.hit {
+                        *n = normal(ctx, hit, &mut cache.gradients);
+                    }
+                }
+                let masks = shadow_masks(ctx, fine, rays, &normals);
+                for (lane, (ray, c)) in rays.iter().zip(out).enumerate() {
+                    *c = match &ray.hit {
+                        Some(hit) => shade(ctx, hit, normals[lane], Some((&masks, lane)), cache),
+                        None => Vec4::ZERO,
+                    };
+                }
+            } else {
+                for (ray, c) in rays.iter().zip(out) {
+                    *c = ray.resolve_in(ctx, cache);
+                }
             }
             return;
-        };
-        let mut normals = [None; packet::PACKET];
-        for (ray, n) in rays.iter().zip(&mut normals) {
+        }
+        // The gradients one by one (the cache of corner differences), the
+        // rest for all lanes at once.
+        let mut g = [Vec3::ZERO; packet::PACKET];
+        let mut view = [Vec3::ZERO; packet::PACKET];
+        let mut hits = 0u32;
+        for (l, ray) in rays.iter().enumerate() {
             if let Some(hit) = &ray.hit {
-                *n = normal(ctx, hit, &mut cache.gradients);
+                g[l] = gradient_at(ctx, hit, &mut cache.gradients);
+                view[l] = -hit.world_dir;
+                hits |= 1 << l;
             }
         }
-        let masks = shadow_masks(ctx, fine, rays, &normals);
-        for (lane, (ray, c)) in rays.iter().zip(out).enumerate() {
-            *c = match &ray.hit {
-                Some(hit) => shade(ctx, hit, normals[lane], Some((&masks, lane)), cache),
-                None => Vec4::ZERO,
+        let lanes = LaneNormals::new(&g, &view);
+        let masks = match fine {
+            Some(fine) => {
+                let normals: [Option<Vec3>; packet::PACKET] = std::array::from_fn(|l| {
+                    (hits >> l & 1 != 0 && lanes.valid[l] != 0).then(|| lanes.normal(l))
+                });
+                shadow_masks(ctx, fine, rays, &normals)
+            }
+            None => ShadowMasks::default(),
+        };
+        let c = *cache
+            .colour
+            .get_or_insert_with(|| ctx.tf.evaluate(ctx.iso_value).truncate());
+        let rgb = lit_lanes(ctx, c, &lanes, &view, casts.then_some(&masks));
+        for (l, o) in out.iter_mut().enumerate().take(rays.len()) {
+            *o = if hits >> l & 1 != 0 {
+                rgb[l].extend(1.0)
+            } else {
+                Vec4::ZERO
             };
         }
     }
@@ -374,14 +419,7 @@ fn normal<V: Volume>(
     hit: &IsoHit,
     gradients: &mut GradientCache,
 ) -> Option<Vec3> {
-    let g = match ctx.iso_normals {
-        IsoNormals::Gradient => gradients.gradient(ctx.volume, hit.pos.into()),
-        IsoNormals::Analytic => {
-            let corners = ctx.volume.corners(hit.cell);
-            trilinear_derivative(&corners, Vec3::from(hit.pos) - hit.cell.as_vec3())
-                / ctx.volume.grid().spacing
-        }
-    };
+    let g = gradient_at(ctx, hit, gradients);
     let len = g.length();
     if len > 0.0 && len.is_finite() {
         let view = -hit.world_dir;
@@ -389,6 +427,111 @@ fn normal<V: Volume>(
         Some(if n.dot(view) < 0.0 { -n } else { n })
     } else {
         None
+    }
+}
+
+/// The normals of a packet's hits, lane by lane: [`normal`]'s arithmetic
+/// in the same order, for all lanes at once.
+struct LaneNormals {
+    n: [[f32; packet::PACKET]; 3],
+    /// Non-zero where the lane has a normal.
+    valid: [u32; packet::PACKET],
+}
+
+impl LaneNormals {
+    /// From the gradients `g` and the directions `view` towards the eye.
+    #[inline(always)]
+    fn new(g: &[Vec3; packet::PACKET], view: &[Vec3; packet::PACKET]) -> Self {
+        let mut n = [[0.0f32; packet::PACKET]; 3];
+        let mut valid = [0u32; packet::PACKET];
+        for l in 0..packet::PACKET {
+            let len = ((g[l].x * g[l].x) + (g[l].y * g[l].y) + (g[l].z * g[l].z)).sqrt();
+            valid[l] = (len > 0.0 && len.is_finite()) as u32;
+            let (x, y, z) = (g[l].x / len, g[l].y / len, g[l].z / len);
+            let back = (x * view[l].x) + (y * view[l].y) + (z * view[l].z) < 0.0;
+            n[0][l] = if back { -x } else { x };
+            n[1][l] = if back { -y } else { y };
+            n[2][l] = if back { -z } else { z };
+        }
+        LaneNormals { n, valid }
+    }
+
+    #[inline(always)]
+    fn normal(&self, l: usize) -> Vec3 {
+        Vec3::new(self.n[0][l], self.n[1][l], self.n[2][l])
+    }
+}
+
+/// [`lit`] for a packet's hits with normals `lanes` (seen from `view`), for
+/// all lanes at once with its arithmetic in the same order; `masks`: the
+/// packet's shadow masks when the frame casts shadows. The frame shades,
+/// and has at most [`CACHED_LIGHTS`] lights.
+#[inline(always)]
+fn lit_lanes<V: Volume>(
+    ctx: &FrameContext<'_, V>,
+    c: Vec3,
+    lanes: &LaneNormals,
+    view: &[Vec3; packet::PACKET],
+    masks: Option<&ShadowMasks>,
+) -> [Vec3; packet::PACKET] {
+    const P: usize = packet::PACKET;
+    let Some(ph) = &ctx.shading else {
+        return [c; P];
+    };
+    let ambient = c * ph.ka;
+    let mut r = [[ambient.x; P], [ambient.y; P], [ambient.z; P]];
+    let n = &lanes.n;
+    let count = ctx.lights.len().max(1);
+    for k in 0..count {
+        // The light's direction per lane (a headlight: the view's).
+        let l: [[f32; P]; 3] = match ctx.lights.get(k) {
+            Some(d) => [[d.x; P], [d.y; P], [d.z; P]],
+            None => [view.map(|v| v.x), view.map(|v| v.y), view.map(|v| v.z)],
+        };
+        let shadowed = masks.map_or(0, |m| m[k]);
+        // `Phong::light`, its power taken for all lanes at once.
+        let mut ndotl = [0.0f32; P];
+        let mut rdotv = [0.0f32; P];
+        for i in 0..P {
+            ndotl[i] = (n[0][i] * l[0][i]) + (n[1][i] * l[1][i]) + (n[2][i] * l[2][i]);
+            let twice = 2.0 * ndotl[i];
+            let rx = n[0][i] * twice - l[0][i];
+            let ry = n[1][i] * twice - l[1][i];
+            let rz = n[2][i] * twice - l[2][i];
+            rdotv[i] = ((rx * view[i].x) + (ry * view[i].y) + (rz * view[i].z)).max(0.0);
+        }
+        let spec = if ph.ks > 0.0 {
+            powi_lanes(rdotv, ph.shininess).map(|p| ph.ks * p)
+        } else {
+            [0.0; P]
+        };
+        for i in 0..P {
+            let on = lanes.valid[i] != 0 && ndotl[i] > 0.0 && shadowed >> i & 1 == 0;
+            let diffuse = ph.kd * ndotl[i];
+            if on {
+                r[0][i] += c.x * diffuse + spec[i];
+                r[1][i] += c.y * diffuse + spec[i];
+                r[2][i] += c.z * diffuse + spec[i];
+            }
+        }
+    }
+    std::array::from_fn(|i| Vec3::new(r[0][i], r[1][i], r[2][i]))
+}
+
+/// The gradient at `hit` that [`normal`] normalises.
+#[inline(always)]
+fn gradient_at<V: Volume>(
+    ctx: &FrameContext<'_, V>,
+    hit: &IsoHit,
+    gradients: &mut GradientCache,
+) -> Vec3 {
+    match ctx.iso_normals {
+        IsoNormals::Gradient => gradients.gradient(ctx.volume, hit.pos.into()),
+        IsoNormals::Analytic => {
+            let corners = ctx.volume.corners(hit.cell);
+            trilinear_derivative(&corners, Vec3::from(hit.pos) - hit.cell.as_vec3())
+                / ctx.volume.grid().spacing
+        }
     }
 }
 
