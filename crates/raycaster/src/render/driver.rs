@@ -101,8 +101,10 @@ impl<V: Volume> FrameJob<'_, V> {
     /// a dozen divisions and two square roots a ray) done for all the
     /// block's rays at once in vector instructions. `None` where only the
     /// pixel-by-pixel way applies: an orthographic camera, a clip region, a
-    /// direction component of 0, a block that is not whole inside a
-    /// culled-ray test that must trace to the box.
+    /// direction component of 0, or a ray the proxy depths cull in a
+    /// rectangle not known to enter the box (`all_enter` false: the ray is
+    /// traced to the box to be counted). The block must lie inside the
+    /// image.
     #[inline]
     pub fn pixel_block(&self, i0: u32, j0: u32, all_enter: bool) -> Option<[PixelRay; BLOCK]> {
         if self.plan.camera.projection() != Projection::Perspective || self.plan.clip.is_some() {
@@ -446,7 +448,7 @@ fn render_tile_packets<V: Volume, I: Integrator>(
     rect: &PixelRect,
     all_enter: bool,
 ) -> (Vec<u8>, u64) {
-    const N: usize = (PACKET_W * PACKET_H) as usize;
+    const N: usize = BLOCK;
     let width = rect.x1 - rect.x0;
     let mut rgb = vec![0u8; 3 * rect.area() as usize];
     let mut samples = 0;

@@ -224,9 +224,11 @@ impl Integrator for IsoState {
         shade(ctx, &hit, n, None, cache)
     }
 
-    /// With shadows, the block's shadow rays towards each light are walked
-    /// together ([`shadow_masks`]): they share a direction and start close
-    /// to each other on the surface. The same colours as one by one.
+    /// The block's normals and lights' Phong terms are computed lane-wise
+    /// (`LaneNormals`, `lit_lanes`), and with shadows its shadow rays
+    /// towards each light are walked together ([`shadow_masks`]): they share
+    /// a direction and start close to each other on the surface. The same
+    /// colours, to the bit, as one by one.
     fn resolve_packet<V: Volume>(
         rays: &[Self],
         ctx: &FrameContext<'_, V>,
