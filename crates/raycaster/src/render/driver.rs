@@ -515,19 +515,73 @@ mod tests {
     use crate::integrator::RenderMode;
     use crate::volume::{AnyVolume, Grid};
 
-    /// A schedule that integrates nothing: for every whole block of the
-    /// frame's rectangle it checks that [`FrameJob::pixel_block`] gives, to
-    /// the bit, what [`FrameJob::pixel_in`] gives pixel by pixel.
+    /// A schedule that checks a frame's blocks instead of rendering them:
+    /// for every whole block of the frame's rectangle, that
+    /// [`FrameJob::pixel_block`] gives, to the bit, what
+    /// [`FrameJob::pixel_in`] gives pixel by pixel; and for every block,
+    /// that its searched rays resolved together
+    /// ([`Integrator::resolve_packet`]) give, to the bit, what each gives
+    /// resolved alone ([`Integrator::resolve`]).
     #[derive(Default)]
-    struct CheckBlocks {
-        /// Blocks set up lane-wise, and rays searched in them.
+    struct CheckFrame {
+        /// Blocks set up lane-wise, and rays searched and culled in them.
         blocks: usize,
         searched: usize,
         culled: usize,
+        /// Rays resolved to some opacity.
+        covered: usize,
     }
 
-    impl Schedule for CheckBlocks {
-        const NAME: &'static str = "check-blocks";
+    impl CheckFrame {
+        fn block_set_up<V: Volume>(&mut self, job: &FrameJob<'_, V>, bx: u32, by: u32) {
+            for all_enter in [false, true] {
+                let Some(block) = job.pixel_block(bx, by, all_enter) else {
+                    continue;
+                };
+                self.blocks += 1;
+                for (l, ray) in block.iter().enumerate() {
+                    let (i, j) = (bx + l as u32 % PACKET_W, by + l as u32 / PACKET_W);
+                    let want = job.pixel_in(i, j, all_enter);
+                    assert_eq!(bits(ray), bits(&want), "pixel {i},{j}");
+                    self.searched += matches!(ray, PixelRay::Searched(_)) as usize;
+                    self.culled += matches!(ray, PixelRay::Culled(_)) as usize;
+                }
+            }
+        }
+
+        fn block_resolved<V: Volume, I: Integrator>(
+            &mut self,
+            job: &FrameJob<'_, V>,
+            rect: &PixelRect,
+            scratch: &mut I::Scratch,
+        ) {
+            let mut segs = [RaySegment::default(); BLOCK];
+            let mut n = 0;
+            for j in rect.y0..rect.y1 {
+                for i in rect.x0..rect.x1 {
+                    if let PixelRay::Searched(seg) = job.pixel(i, j) {
+                        segs[n] = seg;
+                        n += 1;
+                    }
+                }
+            }
+            let mut rays = [I::default(); BLOCK];
+            I::integrate_packet(&job.ctx, &mut rays[..n], &segs[..n]);
+            let mut together = [Vec4::ZERO; BLOCK];
+            I::resolve_packet(&rays[..n], &job.ctx, scratch, &mut together[..n]);
+            for (ray, c) in rays[..n].iter().zip(&together) {
+                let alone = ray.resolve(&job.ctx);
+                assert_eq!(
+                    c.to_array().map(f32::to_bits),
+                    alone.to_array().map(f32::to_bits)
+                );
+                self.covered += (alone.w > 0.0) as usize;
+            }
+        }
+    }
+
+    impl Schedule for CheckFrame {
+        const NAME: &'static str = "check-frame";
 
         fn threads(&self) -> usize {
             1
@@ -539,24 +593,19 @@ mod tests {
             _film: &mut Film,
         ) -> Option<u64> {
             let rect = job.plan.rect;
-            for all_enter in [false, true] {
-                for by in (rect.y0..rect.y1.saturating_sub(PACKET_H - 1)).step_by(PACKET_H as usize)
-                {
-                    for bx in
-                        (rect.x0..rect.x1.saturating_sub(PACKET_W - 1)).step_by(PACKET_W as usize)
-                    {
-                        let Some(block) = job.pixel_block(bx, by, all_enter) else {
-                            continue;
-                        };
-                        self.blocks += 1;
-                        for (l, ray) in block.iter().enumerate() {
-                            let (i, j) = (bx + l as u32 % PACKET_W, by + l as u32 / PACKET_W);
-                            let want = job.pixel_in(i, j, all_enter);
-                            assert_eq!(bits(ray), bits(&want), "pixel {i},{j}");
-                            self.searched += matches!(ray, PixelRay::Searched(_)) as usize;
-                            self.culled += matches!(ray, PixelRay::Culled(_)) as usize;
-                        }
+            let mut scratch = I::Scratch::default();
+            for by in (rect.y0..rect.y1).step_by(PACKET_H as usize) {
+                for bx in (rect.x0..rect.x1).step_by(PACKET_W as usize) {
+                    let block = PixelRect {
+                        x0: bx,
+                        y0: by,
+                        x1: (bx + PACKET_W).min(rect.x1),
+                        y1: (by + PACKET_H).min(rect.y1),
+                    };
+                    if block.x1 - bx == PACKET_W && block.y1 - by == PACKET_H {
+                        self.block_set_up(job, bx, by);
                     }
+                    self.block_resolved::<V, I>(job, &block, &mut scratch);
                 }
             }
             Some(0)
@@ -595,7 +644,7 @@ mod tests {
         }));
         let tf = TransferFunction::preset("ramp", crate::sample::SampleType::F32).unwrap();
         let mut rng = fastrand::Rng::with_seed(3);
-        let mut checker = FrameRenderer::with_schedule(CheckBlocks::default());
+        let mut checker = FrameRenderer::with_schedule(CheckFrame::default());
         for trial in 0..24 {
             let eye = if trial % 4 == 3 {
                 centre + Vec3::new(rng.f32() - 0.5, rng.f32() - 0.5, rng.f32() - 0.5) * 4.0
@@ -639,60 +688,6 @@ mod tests {
         )
         .unwrap();
         assert_eq!(checker.schedule().blocks, blocks);
-    }
-
-    /// A schedule that integrates each block's rays as a packet and checks
-    /// that resolving them together ([`Integrator::resolve_packet`]) gives,
-    /// to the bit, what resolving each alone ([`Integrator::resolve`])
-    /// gives.
-    #[derive(Default)]
-    struct CheckPackets {
-        covered: usize,
-    }
-
-    impl Schedule for CheckPackets {
-        const NAME: &'static str = "check-packets";
-
-        fn threads(&self) -> usize {
-            1
-        }
-
-        fn run<V: Volume, I: Integrator>(
-            &mut self,
-            job: &FrameJob<'_, V>,
-            _film: &mut Film,
-        ) -> Option<u64> {
-            const N: usize = BLOCK;
-            let rect = job.plan.rect;
-            let mut scratch = I::Scratch::default();
-            for by in (rect.y0..rect.y1).step_by(PACKET_H as usize) {
-                for bx in (rect.x0..rect.x1).step_by(PACKET_W as usize) {
-                    let mut segs = [RaySegment::default(); N];
-                    let mut n = 0;
-                    for j in by..(by + PACKET_H).min(rect.y1) {
-                        for i in bx..(bx + PACKET_W).min(rect.x1) {
-                            if let PixelRay::Searched(seg) = job.pixel(i, j) {
-                                segs[n] = seg;
-                                n += 1;
-                            }
-                        }
-                    }
-                    let mut rays = [I::default(); N];
-                    I::integrate_packet(&job.ctx, &mut rays[..n], &segs[..n]);
-                    let mut together = [Vec4::ZERO; N];
-                    I::resolve_packet(&rays[..n], &job.ctx, &mut scratch, &mut together[..n]);
-                    for (ray, c) in rays[..n].iter().zip(&together) {
-                        let alone = ray.resolve(&job.ctx);
-                        assert_eq!(
-                            c.to_array().map(f32::to_bits),
-                            alone.to_array().map(f32::to_bits)
-                        );
-                        self.covered += (alone.w > 0.0) as usize;
-                    }
-                }
-            }
-            Some(0)
-        }
     }
 
     /// Exact iso packets shade (normals, lights, shadow rays) as their rays
@@ -742,7 +737,7 @@ mod tests {
                 ..base
             },
         ];
-        let mut checker = FrameRenderer::with_schedule(CheckPackets::default());
+        let mut checker = FrameRenderer::with_schedule(CheckFrame::default());
         for (k, options) in configs.iter().enumerate() {
             let eye = centre + Vec3::new(20.0 - 9.0 * k as f32, 25.0, 30.0);
             let camera = Camera::look_at(eye, centre, 61, 47);
