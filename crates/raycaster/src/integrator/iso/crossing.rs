@@ -120,11 +120,20 @@ impl CellCubic {
     /// stays on one side. `g(0)` itself decides the side it starts on.
     #[inline]
     pub fn first_crossing(&self, len: f32, tol: f32) -> Option<f32> {
-        let g0 = self.eval(0.0);
-        let side = g0 >= 0.0;
-        if self.stays_on(side, len) {
+        if self.stays_on(self.eval(0.0) >= 0.0, len) {
             return None;
         }
+        self.first_crossing_unproven(len, tol)
+    }
+
+    /// [`CellCubic::first_crossing`] for a caller that has already tried
+    /// [`CellCubic::stays_on`] on `[0, len]` with the side of `g(0)` and
+    /// failed (the packets, for every lane): the same answer, without the
+    /// proof tried twice.
+    #[inline]
+    pub fn first_crossing_unproven(&self, len: f32, tol: f32) -> Option<f32> {
+        let g0 = self.eval(0.0);
+        let side = g0 >= 0.0;
         // A cubic proven monotonic on the interval has no extremum inside
         // it: the search is the bracket [0, len], without the square root
         // and divisions of the extrema (most cells a ray hits in).
@@ -171,11 +180,10 @@ impl CellCubic {
         // or maximum: `f32::min`/`max`'s NaN handling triples the
         // instructions of this test, which packets run for every lane of
         // every straddling cell. (A NaN proves nothing: the extrema decide.)
-        if side {
-            (d > margin) & (b1 > margin) & (b2 > margin) & (b3 > margin)
-        } else {
-            (d < -margin) & (b1 < -margin) & (b2 < -margin) & (b3 < -margin)
-        }
+        // Below the side, the coefficients negated (exactly) instead of a
+        // branch on it, which is either side at random.
+        let s = if side { 1.0 } else { -1.0 };
+        (s * d > margin) & (s * b1 > margin) & (s * b2 > margin) & (s * b3 > margin)
     }
 
     /// A cheap proof that `g'` keeps one sign on `[0, len]`, so that `g` is

@@ -256,8 +256,11 @@ fn walk_group<V: Volume, I: Isa>(
     let mut side = [false; PACKET];
     let mut side_bits = 0u32;
     let mut start = [0i32; PACKET];
-    // Cells visited per lane (the DDA's steps, as the scalar walk counts them).
-    let mut steps = [0u64; PACKET];
+    // Cells visited per lane (the DDA's steps, as the scalar walk counts
+    // them): in the slices, and alone after its window. 32-bit lanes in the
+    // per-cell loop, so that it is compiled as wide as its `f32`s.
+    let mut steps = [0u32; PACKET];
+    let mut steps_alone = [0u64; PACKET];
     let mut active = 0u32;
     for (l, r) in rays.iter().enumerate() {
         if group & (1 << l) == 0 {
@@ -415,7 +418,7 @@ fn walk_group<V: Volume, I: Isa>(
                         te[l] = if tn > tf { tn } else { tf };
                         let cross = (in_slice >> l) & 1 != 0 && tn <= tf && tn < best_t[l];
                         crosses[l] = cross as u32;
-                        steps[l] += cross as u64;
+                        steps[l] += cross as u32;
                         let origin = Vec3::new(lanes.o[0][l], lanes.o[1][l], lanes.o[2][l]);
                         let dir = Vec3::new(lanes.d[0][l], lanes.d[1][l], lanes.d[2][l]);
                         let p0 = origin + dir * tc[l] - c;
@@ -428,7 +431,10 @@ fn walk_group<V: Volume, I: Isa>(
                             Some(tc)
                         } else {
                             let tol = rays[l].ray.tol;
-                            cubic.first_crossing(te - tc, tol).map(|dt| tc + dt)
+                            // `stays_on` failed just above: the lane is open.
+                            cubic
+                                .first_crossing_unproven(te - tc, tol)
+                                .map(|dt| tc + dt)
                         };
                         if let Some(t) = hit
                             && (t, tc) < (best_t[l], best_tc[l])
@@ -463,13 +469,13 @@ fn walk_group<V: Volume, I: Isa>(
                 ..rays[l]
             };
             out[l] = alone(volume, skip, iso, &resumed, Some(side[l]));
-            steps[l] += out[l].steps;
+            steps_alone[l] = out[l].steps;
         }
         active &= !(found | left | expires);
         s += step;
     }
     for l in lanes_of(started) {
-        out[l].steps = steps[l];
+        out[l].steps = steps[l] as u64 + steps_alone[l];
     }
 }
 
