@@ -23,14 +23,17 @@
 //! a ray's position, so a ray that grazes a straddling cell, which the walk
 //! might still open, is never culled and never starts past it. The boxes
 //! are binned into bands of rows and the bands filled in parallel; the
-//! result does not depend on the order (a minimum per pixel).
+//! result does not depend on the order (a minimum per pixel). Both passes
+//! (the boxes' rectangles, the fill) run on threads started for them
+//! (`on_threads`), one piece of the work each, rather than on a rayon pool
+//! that is asleep after the frame's rendering.
 //!
 //! [`LightProxy`] draws the same cells as seen along a directional light, so
 //! that shadow rays, which are parallel, learn where they have passed the
 //! last cell towards the light.
 
 use glam::Vec3;
-use rayon::prelude::*;
+use parking_lot::Mutex;
 
 use super::bins::Bins;
 use crate::accel::IsoCells;
@@ -52,8 +55,8 @@ const MARGIN: f32 = 0.01;
 /// silhouette walked in vain.
 const BLOCK: u32 = 2;
 
-/// Block rows per band: the unit of parallel work and of the boxes'
-/// binning.
+/// Block rows per band: the unit of the boxes' binning (each thread fills
+/// a contiguous group of bands).
 const BAND: u32 = 4;
 
 /// Per pixel of a screen rectangle, a ray parameter (world units, `>= 0`)
@@ -104,25 +107,29 @@ impl ProxyDepth {
         // Each box (a run of cells along z) its blocks: those its pixels'
         // rectangle touches; its depth: a lower bound on where any ray
         // enters it.
-        let rects: Vec<(PixelRect, f32)> = runs
-            .par_iter()
-            .filter_map(|&(c, len)| {
-                let c = c.as_vec3();
-                let lo = grid.voxel_to_world(c - grow);
-                let hi = grid.voxel_to_world(c + Vec3::new(1.0, 1.0, len as f32) + grow);
-                let r = frame.box_rect(lo, hi)?.intersect(&rect);
-                if r.is_empty() {
-                    return None;
-                }
-                let blocks = PixelRect {
-                    x0: (r.x0 - rect.x0) / BLOCK,
-                    y0: (r.y0 - rect.y0) / BLOCK,
-                    x1: (r.x1 - rect.x0).div_ceil(BLOCK),
-                    y1: (r.y1 - rect.y0).div_ceil(BLOCK),
-                };
-                Some((blocks, nearest_t(frame, lo, hi)))
-            })
-            .collect();
+        let box_of = |&(c, len): &(glam::UVec3, u32)| {
+            let c = c.as_vec3();
+            let lo = grid.voxel_to_world(c - grow);
+            let hi = grid.voxel_to_world(c + Vec3::new(1.0, 1.0, len as f32) + grow);
+            let r = frame.box_rect(lo, hi)?.intersect(&rect);
+            if r.is_empty() {
+                return None;
+            }
+            let blocks = PixelRect {
+                x0: (r.x0 - rect.x0) / BLOCK,
+                y0: (r.y0 - rect.y0) / BLOCK,
+                x1: (r.x1 - rect.x0).div_ceil(BLOCK),
+                y1: (r.y1 - rect.y0).div_ceil(BLOCK),
+            };
+            Some((blocks, nearest_t(frame, lo, hi)))
+        };
+        let parts = rayon::current_num_threads().max(1);
+        let pieces: Vec<&[(glam::UVec3, u32)]> =
+            runs.chunks(runs.len().div_ceil(parts).max(1)).collect();
+        let rects: Vec<(PixelRect, f32)> = on_threads(pieces, |piece| {
+            piece.iter().filter_map(box_of).collect::<Vec<_>>()
+        })
+        .concat();
         // The boxes by band of block rows.
         let bands = Bins::build(h.div_ceil(BAND) as usize, rects.len(), |k, put| {
             let r = rects[k].0;
@@ -130,22 +137,31 @@ impl ProxyDepth {
                 put(b as usize);
             }
         });
-        depth
-            .par_chunks_mut((BAND * w) as usize)
-            .enumerate()
-            .for_each(|(b, out)| {
-                let y0 = b as u32 * BAND;
-                let y1 = (y0 + BAND).min(h);
-                for &k in bands.get(b) {
-                    let (r, t) = rects[k as usize];
-                    for j in r.y0.max(y0)..r.y1.min(y1) {
-                        let o = ((j - y0) * w + r.x0) as usize;
-                        for d in &mut out[o..o + (r.x1 - r.x0) as usize] {
-                            *d = if t < *d { t } else { *d };
-                        }
+        let fill_band = |b: usize, out: &mut [f32]| {
+            let y0 = b as u32 * BAND;
+            let y1 = (y0 + BAND).min(h);
+            for &k in bands.get(b) {
+                let (r, t) = rects[k as usize];
+                for j in r.y0.max(y0)..r.y1.min(y1) {
+                    let o = ((j - y0) * w + r.x0) as usize;
+                    for d in &mut out[o..o + (r.x1 - r.x0) as usize] {
+                        *d = if t < *d { t } else { *d };
                     }
                 }
-            });
+            }
+        };
+        let band_len = (BAND * w) as usize;
+        let bands_per_part = (h.div_ceil(BAND) as usize).div_ceil(parts).max(1);
+        let pieces: Vec<(usize, &mut [f32])> = depth
+            .chunks_mut(bands_per_part * band_len)
+            .enumerate()
+            .map(|(p, c)| (p * bands_per_part, c))
+            .collect();
+        on_threads(pieces, |(first, out)| {
+            for (i, band) in out.chunks_mut(band_len).enumerate() {
+                fill_band(first + i, band);
+            }
+        });
         ProxyDepth {
             rect,
             width: w,
@@ -170,6 +186,46 @@ impl ProxyDepth {
     pub fn boxes(&self) -> usize {
         self.boxes
     }
+}
+
+/// Runs `f` on each of `pieces` on the calling thread and a scoped thread
+/// per other piece (fewer when one cannot be started: the threads take the
+/// pieces in turn), and returns the results in the pieces' order.
+///
+/// The proxy's two passes are short (a millisecond or two a frame), and a
+/// rayon pool asked for them from outside, after idling through the
+/// frame's rendering, often left one worker to do all of it while the
+/// others had not woken (measured per thread in the object renderer's
+/// frames): threads started for the pass work from the start.
+fn on_threads<P: Send, T: Send>(pieces: Vec<P>, f: impl Fn(P) -> T + Sync) -> Vec<T> {
+    use std::sync::atomic::{AtomicUsize, Ordering};
+    let n = pieces.len();
+    let jobs: Vec<Mutex<Option<P>>> = pieces.into_iter().map(|p| Mutex::new(Some(p))).collect();
+    let done: Vec<Mutex<Option<T>>> = (0..n).map(|_| Mutex::new(None)).collect();
+    let next = AtomicUsize::new(0);
+    let work = || {
+        loop {
+            let i = next.fetch_add(1, Ordering::Relaxed);
+            let Some(job) = jobs.get(i) else {
+                break;
+            };
+            if let Some(p) = job.lock().take() {
+                *done[i].lock() = Some(f(p));
+            }
+        }
+    };
+    std::thread::scope(|s| {
+        for _ in 1..n {
+            // A thread that cannot be started leaves its pieces to the others.
+            let _ = std::thread::Builder::new()
+                .name("raycaster-proxy".into())
+                .spawn_scoped(s, work);
+        }
+        work();
+    });
+    // Every piece was taken by a thread that finished (the scope joined
+    // them, and a panic in one would have propagated).
+    done.into_iter().filter_map(Mutex::into_inner).collect()
 }
 
 /// The straddling cells seen from a directional light: how far a shadow
@@ -307,6 +363,45 @@ mod tests {
                 )
             })
             .collect()
+    }
+
+    /// `on_threads` gives each piece's result in the pieces' order and
+    /// runs each piece once, for no pieces, one, and more than there are
+    /// cores.
+    #[test]
+    fn on_threads_runs_each_piece_once_and_keeps_their_order() {
+        for n in [0usize, 1, 2, 3, 7] {
+            let mut data: Vec<u32> = (0..100).collect();
+            let pieces: Vec<&mut [u32]> = data.chunks_mut(100usize.div_ceil(n.max(1))).collect();
+            let pieces: Vec<&mut [u32]> = pieces.into_iter().take(n).collect();
+            let sums = on_threads(pieces, |p| {
+                p.iter_mut().for_each(|v| *v += 1000);
+                p.iter().sum::<u32>()
+            });
+            let chunk = 100usize.div_ceil(n.max(1));
+            let expected: Vec<u32> = (0..n)
+                .map(|k| {
+                    (k * chunk..((k + 1) * chunk).min(100))
+                        .map(|v| v as u32 + 1000)
+                        .sum()
+                })
+                .collect();
+            assert_eq!(sums, expected, "{n} pieces");
+            // Each piece's values were changed exactly once.
+            let touched = if n == 0 { 0 } else { (n * chunk).min(100) };
+            assert!(
+                data[..touched]
+                    .iter()
+                    .enumerate()
+                    .all(|(i, &v)| v == i as u32 + 1000)
+            );
+            assert!(
+                data[touched..]
+                    .iter()
+                    .enumerate()
+                    .all(|(i, &v)| v == (touched + i) as u32)
+            );
+        }
     }
 
     /// Every pixel's depth is at or before the nearest entry into a
