@@ -32,7 +32,7 @@
 //! that shadow rays, which are parallel, learn where they have passed the
 //! last cell towards the light.
 
-use glam::Vec3;
+use glam::{UVec3, Vec3};
 use parking_lot::Mutex;
 
 use super::bins::Bins;
@@ -107,7 +107,7 @@ impl ProxyDepth {
         // Each box (a run of cells along z) its blocks: those its pixels'
         // rectangle touches; its depth: a lower bound on where any ray
         // enters it.
-        let box_of = |&(c, len): &(glam::UVec3, u32)| {
+        let box_of = |&(c, len): &(UVec3, u32)| {
             let c = c.as_vec3();
             let lo = grid.voxel_to_world(c - grow);
             let hi = grid.voxel_to_world(c + Vec3::new(1.0, 1.0, len as f32) + grow);
@@ -124,8 +124,7 @@ impl ProxyDepth {
             Some((blocks, nearest_t(frame, lo, hi)))
         };
         let parts = rayon::current_num_threads().max(1);
-        let pieces: Vec<&[(glam::UVec3, u32)]> =
-            runs.chunks(runs.len().div_ceil(parts).max(1)).collect();
+        let pieces: Vec<&[(UVec3, u32)]> = runs.chunks(runs.len().div_ceil(parts).max(1)).collect();
         let rects: Vec<(PixelRect, f32)> = on_threads(pieces, |piece| {
             piece.iter().filter_map(box_of).collect::<Vec<_>>()
         })
@@ -198,34 +197,41 @@ impl ProxyDepth {
 /// others had not woken (measured per thread in the object renderer's
 /// frames): threads started for the pass work from the start.
 fn on_threads<P: Send, T: Send>(pieces: Vec<P>, f: impl Fn(P) -> T + Sync) -> Vec<T> {
-    use std::sync::atomic::{AtomicUsize, Ordering};
-    let n = pieces.len();
-    let jobs: Vec<Mutex<Option<P>>> = pieces.into_iter().map(|p| Mutex::new(Some(p))).collect();
-    let done: Vec<Mutex<Option<T>>> = (0..n).map(|_| Mutex::new(None)).collect();
-    let next = AtomicUsize::new(0);
+    let helpers = pieces.len().saturating_sub(1);
+    let queue = Mutex::new(pieces.into_iter().enumerate());
+    // Each thread takes pieces until none is left (the lock held only to
+    // take one) and returns what it made, by piece.
     let work = || {
+        let mut made = Vec::new();
         loop {
-            let i = next.fetch_add(1, Ordering::Relaxed);
-            let Some(job) = jobs.get(i) else {
-                break;
+            let next = queue.lock().next();
+            let Some((i, p)) = next else {
+                return made;
             };
-            if let Some(p) = job.lock().take() {
-                *done[i].lock() = Some(f(p));
-            }
+            made.push((i, f(p)));
         }
     };
-    std::thread::scope(|s| {
-        for _ in 1..n {
-            // A thread that cannot be started leaves its pieces to the others.
-            let _ = std::thread::Builder::new()
-                .name("raycaster-proxy".into())
-                .spawn_scoped(s, work);
+    let mut made: Vec<(usize, T)> = std::thread::scope(|s| {
+        // A thread that cannot be started leaves its piece to the others.
+        let started: Vec<_> = (0..helpers)
+            .filter_map(|_| {
+                std::thread::Builder::new()
+                    .name("raycaster-proxy".into())
+                    .spawn_scoped(s, work)
+                    .ok()
+            })
+            .collect();
+        let mut made = work();
+        for h in started {
+            match h.join() {
+                Ok(m) => made.extend(m),
+                Err(panic) => std::panic::resume_unwind(panic),
+            }
         }
-        work();
+        made
     });
-    // Every piece was taken by a thread that finished (the scope joined
-    // them, and a panic in one would have propagated).
-    done.into_iter().filter_map(Mutex::into_inner).collect()
+    made.sort_unstable_by_key(|&(i, _)| i);
+    made.into_iter().map(|(_, t)| t).collect()
 }
 
 /// The straddling cells seen from a directional light: how far a shadow
@@ -337,7 +343,6 @@ mod tests {
     use crate::camera::Camera;
     use crate::geometry::{Aabb, Ray};
     use crate::volume::AnyVolume;
-    use glam::UVec3;
 
     /// A sphere's distance field (×10) on an anisotropic grid, and its
     /// skip grid for iso value `iso`.
