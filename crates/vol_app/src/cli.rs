@@ -563,7 +563,22 @@ pub struct RenderArgs {
 /// Parses the command line; on error prints one line (or the help text) and
 /// returns the exit code.
 pub fn parse() -> Result<Cli, ExitCode> {
-    Cli::try_parse().map_err(|e| raycaster::cli::parse_failure("vol_app", &e))
+    let mut cli = Cli::try_parse().map_err(|e| raycaster::cli::parse_failure("vol_app", &e))?;
+    // A folder holding one volume file (a scan beside its licence or
+    // readme) stands for that file.
+    let resolve = |path: &mut PathBuf| {
+        if let std::borrow::Cow::Owned(file) = raycaster::sequence::resolve_dir(path) {
+            *path = file;
+        }
+    };
+    match &mut cli.command {
+        Some(Command::Render(args)) => args.file.iter_mut().for_each(resolve),
+        Some(Command::Info(args)) => resolve(&mut args.file),
+        Some(Command::Convert(args)) => resolve(&mut args.input),
+        Some(Command::Pack(args)) => resolve(&mut args.input),
+        None => cli.viewer.file.iter_mut().for_each(resolve),
+    }
+    Ok(cli)
 }
 
 fn parse_vec3(s: &str) -> Result<Vec3, String> {

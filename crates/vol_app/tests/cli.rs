@@ -481,6 +481,30 @@ fn info_describes_a_real_nrrd_file_as_text_and_json() {
 }
 
 #[test]
+fn a_folder_with_one_scan_and_its_licence_opens_the_scan() {
+    // A temporary folder: a volume and two files without extensions.
+    let dir = TempDir::new("folder");
+    let vol = ball_file(&dir, VolLayout::Linear);
+    dir.write("LICENSE", b"Permission is hereby granted");
+    dir.write("README", b"a ball");
+    let folder = vol.parent().unwrap().to_path_buf();
+    let out = run_ok(&mut vol_app_on("info", &folder));
+    assert_stdout_mentions(&out, &["24 x 24 x 24", &vol.display().to_string()]);
+    let png = dir.path("folder.png");
+    run_ok(
+        vol_app_on("render", &folder)
+            .args(["--size", "16x16", "--out"])
+            .arg(&png),
+    );
+    // The shared data ships each scan in a folder with its licence.
+    let Some(flair) = shared_data("mri_flair_nrrd") else {
+        return;
+    };
+    let out = run_ok(&mut vol_app_on("info", &flair));
+    assert_stdout_mentions(&out, &["NRRD", "124 x 160 x 140", "FLAIR.nrrd"]);
+}
+
+#[test]
 fn raw_options_read_headerless_files_in_either_order() {
     let dir = TempDir::new("raw");
     let vol_file = ball_file(&dir, VolLayout::Linear);

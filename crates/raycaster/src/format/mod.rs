@@ -54,7 +54,7 @@ use std::path::Path;
 use glam::{UVec3, Vec3};
 
 pub use raw::RawOptions;
-pub use reader::{Claim, Probe, READERS, Reader, detect, reader_for};
+pub use reader::{Claim, Probe, READERS, Reader, detect, detect_claim, reader_for};
 pub use samples::{Endian, Rescale, SampleLayout};
 
 use crate::error::{Error, FormatError, Result};

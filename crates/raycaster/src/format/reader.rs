@@ -93,12 +93,24 @@ pub fn reader_for(path: &Path, options: &OpenOptions) -> Result<&'static dyn Rea
 
 /// Guesses the format of `path` from its name and first bytes.
 pub fn detect(path: &Path) -> Result<FileFormat> {
-    detect_reader(path).map(|(format, _)| format)
+    detect_claim(path).map(|(format, _)| format)
+}
+
+/// [`detect`] and how strongly the format's reader claims the file: a
+/// [`Claim::Fallback`] is a file with no extension and no header any reader
+/// knows (a `LICENSE`, a `README`), taken as a `.vol` only so that opening
+/// it names what is wrong.
+pub fn detect_claim(path: &Path) -> Result<(FileFormat, Claim)> {
+    detect_strongest(path).map(|(claim, (format, _))| (format, claim))
+}
+
+fn detect_reader(path: &Path) -> Result<(FileFormat, &'static dyn Reader)> {
+    detect_strongest(path).map(|(_, found)| found)
 }
 
 /// The reader whose claim on `path` is strongest (see the module
-/// documentation).
-fn detect_reader(path: &Path) -> Result<(FileFormat, &'static dyn Reader)> {
+/// documentation), with its claim.
+fn detect_strongest(path: &Path) -> Result<(Claim, (FileFormat, &'static dyn Reader))> {
     let meta = std::fs::metadata(path).map_err(|e| Error::io(path, e))?;
     let is_dir = meta.is_dir();
     let head = if is_dir {
@@ -120,9 +132,9 @@ fn detect_reader(path: &Path) -> Result<(FileFormat, &'static dyn Reader)> {
     strongest(&probe).ok_or_else(|| unrecognised(path, probe.extension()))
 }
 
-/// The reader with the strongest claim on `probe`, the earliest in
-/// [`READERS`] among equals.
-fn strongest(probe: &Probe) -> Option<(FileFormat, &'static dyn Reader)> {
+/// The reader with the strongest claim on `probe` (the earliest in
+/// [`READERS`] among equals), with its claim.
+fn strongest(probe: &Probe) -> Option<(Claim, (FileFormat, &'static dyn Reader))> {
     let mut best: Option<(Claim, (FileFormat, &'static dyn Reader))> = None;
     for &(format, reader) in READERS {
         if let Some(claim) = reader.sniff(probe)
@@ -131,7 +143,7 @@ fn strongest(probe: &Probe) -> Option<(FileFormat, &'static dyn Reader)> {
             best = Some((claim, (format, reader)));
         }
     }
-    best.map(|(_, found)| found)
+    best
 }
 
 /// The error for a file no reader claims: headerless extensions get the
@@ -169,7 +181,7 @@ mod tests {
             len,
             is_dir,
         };
-        strongest(&probe).map(|(format, _)| format)
+        strongest(&probe).map(|(_, (format, _))| format)
     }
 
     fn nifti_head() -> Vec<u8> {

@@ -4,7 +4,9 @@
 //! A [`Sequence`] is opened from
 //! - a 4-D NIfTI or NRRD file (every 3-D volume of it, in file order),
 //! - a directory of volume files of any supported format (the frames in
-//!   name order; a directory of DICOM files stays one DICOM series),
+//!   name order; a directory of DICOM files stays one DICOM series; a
+//!   directory holding one volume file, beside a licence or a readme, is
+//!   that file: see [`resolve_dir`]),
 //! - a packed `.vseq` file ([`format::vseq`](crate::format::vseq)), whose
 //!   frames are compressed one by one and decoded on every core,
 //! - or any other volume file, as a sequence of one frame.
@@ -34,7 +36,7 @@ pub use playback::{Playback, PlaybackFrame};
 
 use crate::error::{Error, FormatError, Result};
 use crate::format::vseq::VseqFile;
-use crate::format::{FileFormat, OpenOptions, Opened, VolumeInfo};
+use crate::format::{Claim, FileFormat, OpenOptions, Opened, VolumeInfo};
 use crate::sample::SampleType;
 use crate::volume::AnyVolume;
 
@@ -75,6 +77,9 @@ impl Sequence {
         };
         if options.raw.is_none() && path.is_dir() {
             let files = list_frame_files(path)?;
+            if let [only] = files.as_slice() {
+                return Sequence::open(only, options);
+            }
             if !files.is_empty() {
                 let Opened { volume, mut info } = crate::format::open_file(&files[0], &frame0)?;
                 if info.volumes > 1 {
@@ -246,14 +251,34 @@ impl Sequence {
 }
 
 /// The frame files of a directory: its files that a volume reader other
-/// than DICOM claims, in name order. Empty when `dir` is not a directory,
-/// holds DICOM files (it is then one series) or no volume files, or cannot
-/// be listed.
+/// than DICOM claims by name or content, in name order (a file with no
+/// extension and no known header, such as a `LICENSE`, is not a frame).
+/// Empty when `dir` is not a directory, holds DICOM files (it is then one
+/// series), holds one volume file only (see [`resolve_dir`]) or none, or
+/// cannot be listed.
 pub fn frame_files(dir: &Path) -> Vec<PathBuf> {
     if !dir.is_dir() {
         return Vec::new();
     }
-    list_frame_files(dir).unwrap_or_default()
+    match list_frame_files(dir) {
+        Ok(files) if files.len() > 1 => files,
+        _ => Vec::new(),
+    }
+}
+
+/// The file to open for `path`: a directory that holds exactly one volume
+/// file (a scan shipped with its licence or readme) is that file; any
+/// other path is itself. So `vol_app FOLDER` opens the scan in it, with
+/// the macrocell cache of a single file and, for a 4-D file, all its
+/// frames.
+pub fn resolve_dir(path: &Path) -> std::borrow::Cow<'_, Path> {
+    if path.is_dir()
+        && let Ok(files) = list_frame_files(path)
+        && let [only] = files.as_slice()
+    {
+        return std::borrow::Cow::Owned(only.clone());
+    }
+    std::borrow::Cow::Borrowed(path)
 }
 
 fn list_frame_files(dir: &Path) -> Result<Vec<PathBuf>> {
@@ -265,9 +290,9 @@ fn list_frame_files(dir: &Path) -> Result<Vec<PathBuf>> {
         if hidden || !path.is_file() {
             continue;
         }
-        match crate::format::detect(&path) {
-            Ok(FileFormat::Dicom) => return Ok(Vec::new()),
-            Ok(FileFormat::Vseq) | Err(_) => {}
+        match crate::format::detect_claim(&path) {
+            Ok((FileFormat::Dicom, _)) => return Ok(Vec::new()),
+            Ok((FileFormat::Vseq, _) | (_, Claim::Fallback)) | Err(_) => {}
             Ok(_) => files.push(path),
         }
     }

@@ -169,6 +169,63 @@ fn a_directory_of_frames_opens_in_name_order_and_names_an_odd_file() {
 }
 
 #[test]
+fn a_licence_is_not_a_frame_and_a_folder_with_one_scan_is_that_scan() {
+    let write_nrrd = |path: &Path, k: u32| {
+        crate::format::nrrd::write(
+            path,
+            DIMS,
+            Vec3::ONE,
+            crate::sample::SampleType::F32,
+            crate::format::nrrd::Encoding::Raw,
+            crate::format::samples::bytes(&frame_bytes(k)),
+        )
+        .unwrap();
+    };
+    // Files without an extension or a known header, named to sort first.
+    let extras = |dir: &Path| {
+        std::fs::write(dir.join("LICENSE"), "Permission is hereby granted").unwrap();
+        std::fs::write(dir.join("README"), "a scan").unwrap();
+    };
+
+    // One 4-D scan beside its licence: the folder is the file, all its
+    // volumes the frames.
+    let dir = temp("one-4d");
+    extras(&dir);
+    let scan = dir.join("scan.nii");
+    nifti_4d(&scan, 3);
+    assert_eq!(resolve_dir(&dir), scan.as_path());
+    assert!(frame_files(&dir).is_empty());
+    check_frames(&Sequence::open(&dir, &OpenOptions::default()).unwrap(), 3);
+
+    // One 3-D scan: a sequence of one frame, and `resolve_dir` names it.
+    let dir = temp("one-3d");
+    extras(&dir);
+    let scan = dir.join("scan.nrrd");
+    write_nrrd(&scan, 0);
+    assert_eq!(resolve_dir(&dir), scan.as_path());
+    let seq = Sequence::open(&dir, &OpenOptions::default()).unwrap();
+    check_frames(&seq, 1);
+
+    // Two frames and the licence: two frames, in name order.
+    let dir = temp("two");
+    extras(&dir);
+    write_nrrd(&dir.join("f1.nrrd"), 1);
+    write_nrrd(&dir.join("f0.nrrd"), 0);
+    assert_eq!(
+        frame_files(&dir),
+        [dir.join("f0.nrrd"), dir.join("f1.nrrd")]
+    );
+    assert_eq!(resolve_dir(&dir), dir.as_path());
+    check_frames(&Sequence::open(&dir, &OpenOptions::default()).unwrap(), 2);
+
+    // A file that is not a folder is itself.
+    assert_eq!(resolve_dir(&scan), scan.as_path());
+    for name in ["one-4d", "one-3d", "two"] {
+        let _ = std::fs::remove_dir_all(temp(name));
+    }
+}
+
+#[test]
 fn a_packed_sequence_plays_the_same_frames_as_its_source() {
     let dir = temp("packed");
     let nii = dir.join("a.nii");

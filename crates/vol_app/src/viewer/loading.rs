@@ -532,6 +532,12 @@ fn load(
     let mut timeline = None;
     let (scene, name, path, file) = match source {
         Source::File(path, mode, raw) => {
+            // A folder holding one volume file (a scan beside its licence)
+            // is that file.
+            let path = &match raw {
+                None => raycaster::sequence::resolve_dir(path).into_owned(),
+                Some(_) => path.clone(),
+            };
             // Decoding (gzip, DICOM slices) reports its fraction.
             let (p, w) = (progress.clone(), wake.clone());
             let options = raycaster::format::OpenOptions {
