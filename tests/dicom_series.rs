@@ -341,7 +341,7 @@ const CASES: &[Case] = &[
         name: "a directory of non-DICOM files",
         bad: Some(("image.pgm", not_dicom)),
         alone: true,
-        expect: "no DICOM files",
+        expect: "no volume file and no DICOM series",
     },
     Case {
         name: "an empty directory",

@@ -69,7 +69,11 @@ pub(super) fn open(
             None if checked == 0 => (dir.as_path(), "the directory is empty".to_string()),
             None if dicom.is_empty() => (
                 dir.as_path(),
-                format!("no DICOM files among its {checked} files"),
+                format!(
+                    "a folder with no volume file and no DICOM series in it ({checked} {}); \
+                     give a volume file, a folder of frames or a DICOM series",
+                    if checked == 1 { "file" } else { "files" }
+                ),
             ),
             None => (
                 dir.as_path(),
