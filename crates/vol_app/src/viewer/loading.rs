@@ -533,11 +533,8 @@ fn load(
     let (scene, name, path, file) = match source {
         Source::File(path, mode, raw) => {
             // A folder holding one volume file (a scan beside its licence)
-            // is that file.
-            let path = &match raw {
-                None => raycaster::sequence::resolve_dir(path).into_owned(),
-                Some(_) => path.clone(),
-            };
+            // is that file, as on the command line.
+            let path = &raycaster::sequence::resolve_dir(path).into_owned();
             // Decoding (gzip, DICOM slices) reports its fraction.
             let (p, w) = (progress.clone(), wake.clone());
             let options = raycaster::format::OpenOptions {
@@ -815,6 +812,22 @@ mod tests {
         );
         assert!(ok.is_ok());
         assert!(default_memory_limit().is_some_and(|m| m > 0));
+    }
+
+    /// A folder holding one scan and its licence loads the scan.
+    #[test]
+    fn a_folder_with_one_scan_loads_the_scan() {
+        let dir = std::env::temp_dir().join(format!("vol_app-folder-{}", std::process::id()));
+        std::fs::create_dir_all(&dir).unwrap();
+        let v = AnyVolume::from_fn(Grid::new(UVec3::new(9, 7, 5), Vec3::ONE), |p| p.x as u16);
+        raycaster::format::save::save(&dir.join("scan.nrrd"), &v, &Default::default()).unwrap();
+        std::fs::write(dir.join("LICENSE"), "Permission is hereby granted").unwrap();
+        let source = Source::File(dir.clone(), LoadMode::Map, None);
+        let loaded = wait(&LoadJob::start(source, LoadOptions::default(), || {}));
+        std::fs::remove_dir_all(&dir).ok();
+        let loaded = loaded.unwrap();
+        assert_eq!(loaded.info.dims, UVec3::new(9, 7, 5));
+        assert_eq!(loaded.info.name, "scan.nrrd");
     }
 
     #[test]
