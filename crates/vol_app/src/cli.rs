@@ -32,8 +32,9 @@ pub struct Cli {
 #[derive(Debug, Args)]
 pub struct ViewerArgs {
     /// Volume to open in the viewer (.vol, .nrrd, .nhdr, .nii, .nii.gz, a
-    /// DICOM directory or file, raw with --raw-dims/--raw-type). Without it,
-    /// the built-in demo volume.
+    /// DICOM directory or file, a folder of frames or holding one volume
+    /// file, raw with --raw-dims/--raw-type). Without it, the built-in demo
+    /// volume.
     pub file: Option<PathBuf>,
     /// Transfer function for the first volume: shapes, skull, ramp, ct-bone,
     /// ct-soft, mr-default.
@@ -317,7 +318,8 @@ volumes/800shapes_block16.vol --size 700x700 --camera-pos 1100,1100,1100 --look-
 pub struct RenderArgs {
     /// Volume file (.vol, .nrrd, .nhdr, .nii, .nii.gz, a DICOM directory or
     /// file, UC Davis .vol, or raw with --raw-dims/--raw-type) or sequence
-    /// (.vseq, a 4-D file, a directory of frame files); with --mode
+    /// (.vseq, a 4-D file, a directory of frame files); a directory holding
+    /// one volume file (beside a licence or readme) is that file; with --mode
     /// metaballs also a points file (.csv, .xyz: x,y,z[,radius[,value]] a
     /// line). Without it, the built-in demo volume is rendered.
     pub file: Option<PathBuf>,

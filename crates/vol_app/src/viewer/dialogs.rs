@@ -94,7 +94,9 @@ impl Dialogs {
                         .add_filter("All files", &["*"])
                         .pick_file(),
                     Purpose::OpenFolder => d
-                        .set_title("Open a DICOM series or a folder of frames")
+                        .set_title(
+                            "Open a DICOM series, a folder of frames or a folder holding one scan",
+                        )
                         .pick_folder(),
                     Purpose::LoadTf => d
                         .set_title("Load transfer function")

@@ -43,7 +43,7 @@ impl ViewerApp {
             if ui
                 .add_enabled(!self.dialogs.is_open(), egui::Button::new("Folder…"))
                 .on_hover_text(
-                    "Open a folder: a DICOM series (its slices) or a sequence (one file per frame)",
+                    "Open a folder: a DICOM series (its slices), a sequence (one file per frame) or the one scan in it",
                 )
                 .clicked()
             {
