@@ -62,8 +62,14 @@ impl Scene {
     /// cache that cannot be read or written costs a warning in the
     /// [`CacheReport`], never the open. Files whose samples come from more
     /// than the one file named (a detached NRRD header, a DICOM series) get
-    /// no cache.
+    /// no cache. A folder holding one volume file opens that file, with its
+    /// cache ([`crate::sequence::resolve_dir`]).
     pub fn open(path: &Path, open: &OpenOptions, options: &SceneOptions) -> Result<OpenedScene> {
+        let resolved = crate::sequence::resolve_dir(path);
+        let path = match open.raw {
+            None => &*resolved,
+            Some(_) => path,
+        };
         let opened = crate::format::open_file(path, open)?;
         let volume = opened.volume;
         let cell = options

@@ -272,8 +272,14 @@ pub struct Opened {
 }
 
 /// Opens a volume file of any supported format, as described in the module
-/// documentation.
+/// documentation. A folder holding one volume file (beside a licence or a
+/// readme) opens that file ([`crate::sequence::resolve_dir`]).
 pub fn open_file(path: &Path, options: &OpenOptions) -> Result<Opened> {
+    let resolved = crate::sequence::resolve_dir(path);
+    let path = match options.raw {
+        None => &*resolved,
+        Some(_) => path,
+    };
     let opened = reader_for(path, options)
         .and_then(|reader| reader.open(path, options))
         .and_then(|opened| {

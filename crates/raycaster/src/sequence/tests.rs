@@ -205,6 +205,11 @@ fn a_licence_is_not_a_frame_and_a_folder_with_one_scan_is_that_scan() {
     assert_eq!(resolve_dir(&dir), scan.as_path());
     let seq = Sequence::open(&dir, &OpenOptions::default()).unwrap();
     check_frames(&seq, 1);
+    // The library's other ways in take the folder too.
+    let opened = crate::format::open_file(&dir, &OpenOptions::default()).unwrap();
+    assert_eq!(values(&opened.volume), expected(0));
+    let scene = crate::scene::Scene::open(&dir, &OpenOptions::default(), &SceneOptions::default());
+    assert_eq!(scene.unwrap().scene.grid().dims, DIMS);
 
     // Two frames and the licence: two frames, in name order.
     let dir = temp("two");
