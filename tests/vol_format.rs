@@ -340,8 +340,14 @@ fn bad_vol_files_are_errors_that_name_the_file() {
         .unwrap_err()
         .to_string();
     assert!(err.contains("missing.vol"), "{err}");
-    let err = raycaster::format::open(&std::env::temp_dir(), LoadMode::Map).unwrap_err();
-    assert!(!err.to_string().is_empty());
+    // A directory of its own: the system's temporary directory may hold a
+    // single volume file, and a folder holding one opens that file.
+    let dir = std::env::temp_dir().join(format!("vol_format-dir-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    std::fs::write(dir.join("LICENSE"), "not a volume").unwrap();
+    let err = raycaster::format::open(&dir, LoadMode::Map).unwrap_err();
+    std::fs::remove_dir_all(&dir).ok();
+    assert!(err.to_string().contains("vol_format-dir"), "{err}");
 }
 
 /// Random byte strings and randomly corrupted valid files never panic the
