@@ -65,11 +65,7 @@ impl Scene {
     /// no cache. A folder holding one volume file opens that file, with its
     /// cache ([`crate::sequence::resolve_dir`]).
     pub fn open(path: &Path, open: &OpenOptions, options: &SceneOptions) -> Result<OpenedScene> {
-        let resolved = crate::sequence::resolve_dir(path);
-        let path = match open.raw {
-            None => &*resolved,
-            Some(_) => path,
-        };
+        let path = &*crate::format::volume_path(path, open);
         let opened = crate::format::open_file(path, open)?;
         let volume = opened.volume;
         let cell = options

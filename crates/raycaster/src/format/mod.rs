@@ -271,15 +271,21 @@ pub struct Opened {
     pub info: VolumeInfo,
 }
 
+/// The file `options` open for `path`: a folder holding one volume file is
+/// that file ([`crate::sequence::resolve_dir`]), except for raw options,
+/// which describe the path as given.
+pub(crate) fn volume_path<'a>(path: &'a Path, options: &OpenOptions) -> std::borrow::Cow<'a, Path> {
+    match options.raw {
+        None => crate::sequence::resolve_dir(path),
+        Some(_) => std::borrow::Cow::Borrowed(path),
+    }
+}
+
 /// Opens a volume file of any supported format, as described in the module
 /// documentation. A folder holding one volume file (beside a licence or a
 /// readme) opens that file ([`crate::sequence::resolve_dir`]).
 pub fn open_file(path: &Path, options: &OpenOptions) -> Result<Opened> {
-    let resolved = crate::sequence::resolve_dir(path);
-    let path = match options.raw {
-        None => &*resolved,
-        Some(_) => path,
-    };
+    let path = &*volume_path(path, options);
     let opened = reader_for(path, options)
         .and_then(|reader| reader.open(path, options))
         .and_then(|opened| {
