@@ -19,9 +19,12 @@
 //! to 0 when no ball is active). An interval is first tested against the
 //! sum of the active balls' peaks (a ball's kernel is largest where the ray
 //! passes closest to its centre): below the threshold it holds no root and
-//! costs no polynomial work. Otherwise a copy of the sum is Taylor-shifted
-//! to the interval's start and its first root isolated with Bernstein
-//! bounds ([`poly::first_root`]), to `1e-4·R_min`.
+//! costs no polynomial work. While every active ball's kernel still rises
+//! along the ray (the interval ends before each one's point closest to the
+//! ray), so does `F`: outside the surface, the interval holds a root only
+//! if `F` reaches `T` at its end, one evaluation. Otherwise a copy of the
+//! sum is Taylor-shifted to the interval's start and its first root
+//! isolated with Bernstein bounds ([`poly::first_root`]), to `1e-4·R_min`.
 
 use std::cmp::Reverse;
 use std::collections::BinaryHeap;
@@ -121,9 +124,17 @@ pub struct Scratch {
 
 /// A candidate as a tile's rays test it: what the test reads, copied once
 /// per tile into one array in list order (no indirection per ray).
+///
+/// The centre is kept relative to an origin, the eye for a perspective
+/// tile (where every ray starts), with its squared length: a ray from that
+/// origin tests the ball with a dot product, and computes the chord only
+/// for a ball it meets.
 #[derive(Debug, Clone, Copy)]
 pub struct Cand {
-    center: DVec3,
+    /// `centre − origin`.
+    oc: DVec3,
+    /// `|oc|²`.
+    oc2: f64,
     r2: f64,
     inv_r2: f64,
     t_lo: f64,
@@ -132,10 +143,13 @@ pub struct Cand {
 
 impl Cand {
     /// A candidate: ball `ball`, which is `fb`, and no ray enters it
-    /// before `t_lo`.
-    pub fn new(fb: &FrameBall, t_lo: f64, ball: u32) -> Self {
+    /// before `t_lo`, for rays from `origin` (from elsewhere costs a
+    /// little more: see [`first_hit_tile`]).
+    pub fn new(fb: &FrameBall, t_lo: f64, ball: u32, origin: DVec3) -> Self {
+        let oc = fb.center - origin;
         Cand {
-            center: fb.center,
+            oc,
+            oc2: oc.length_squared(),
             r2: fb.r2,
             inv_r2: fb.inv_r2,
             t_lo,
@@ -150,12 +164,12 @@ impl Cand {
 }
 
 /// A tile's `candidates` (indices into `balls`, in `t_lo` order) as
-/// [`Cand`]s, into `out`.
-pub fn tile_cands(balls: &[FrameBall], candidates: &[u32], out: &mut Vec<Cand>) {
+/// [`Cand`]s for rays from `origin`, into `out`.
+pub fn tile_cands(balls: &[FrameBall], candidates: &[u32], origin: DVec3, out: &mut Vec<Cand>) {
     out.clear();
     out.extend(candidates.iter().map(|&k| {
         let fb = &balls[k as usize];
-        Cand::new(fb, fb.t_lo, k)
+        Cand::new(fb, fb.t_lo, k, origin)
     }));
 }
 
@@ -165,8 +179,8 @@ pub fn tile_cands(balls: &[FrameBall], candidates: &[u32], out: &mut Vec<Cand>) 
 /// the rounding of `h²` (about 3e-8 of the distance).
 const TIGHTEN_MARGIN: f64 = 1e-6;
 
-/// Tightens a tile's candidates (from [`tile_cands`]) for the rays of its
-/// pixels `rect` under `frame`: a ball no ray of the tile meets is
+/// Tightens a tile's candidates (from [`tile_cands`] for rays from
+/// `origin`) for the rays of its pixels `rect` under `frame`: a ball no ray of the tile meets is
 /// dropped, and each other's `t_lo` (the frame's bound, the eye's distance
 /// less the radius: right only for a ray through the centre) is raised to
 /// the earliest entry of any ray of the tile; then the list is sorted
@@ -183,7 +197,13 @@ const TIGHTEN_MARGIN: f64 = 1e-6;
 /// grows with `h`. Perspective only (orthographic lists are left as they
 /// are), and balls holding the eye keep their bound. Only the candidates
 /// within `depth` of the list's first are tightened.
-pub fn tighten_tile(frame: &CameraFrame, rect: &PixelRect, cands: &mut Vec<Cand>, depth: f64) {
+pub fn tighten_tile(
+    frame: &CameraFrame,
+    rect: &PixelRect,
+    cands: &mut Vec<Cand>,
+    origin: DVec3,
+    depth: f64,
+) {
     if frame.projection() != Projection::Perspective || rect.x1 <= rect.x0 || rect.y1 <= rect.y0 {
         return;
     }
@@ -219,7 +239,7 @@ pub fn tighten_tile(frame: &CameraFrame, rect: &PixelRect, cands: &mut Vec<Cand>
     // with their place in `cands` in the low bits.
     let mut keys = Vec::with_capacity(prefix);
     for (i, c) in cands[..prefix].iter_mut().enumerate() {
-        let oc = c.center - eye;
+        let oc = c.oc + (origin - eye);
         let d2 = oc.length_squared();
         if d2 > c.r2 {
             let dist = d2.sqrt();
@@ -253,10 +273,6 @@ fn order_bits(x: f64) -> u64 {
 /// Where a ray's line `o + t·d` (unit `d`) passes through a ball.
 #[derive(Debug, Clone, Copy)]
 pub struct Chord {
-    /// The `t` closest to the centre.
-    pub b: f64,
-    /// The centre's squared distance from the line.
-    pub h2: f64,
     /// Entry and exit.
     pub t0: f64,
     pub t1: f64,
@@ -274,8 +290,6 @@ pub fn chord(center: DVec3, r2: f64, o: DVec3, d: DVec3) -> Option<Chord> {
     }
     let half = (r2 - h2).sqrt();
     Some(Chord {
-        b,
-        h2,
         t0: b - half,
         t1: b + half,
     })
@@ -331,22 +345,25 @@ fn peak_of(kernel: Kernel, h2: f64, inv_r2: f64) -> f64 {
 /// `p.balls`, in `t_lo` order) crosses the threshold along `ray`.
 pub fn first_hit(p: &RayParams<'_>, ray: &Ray, candidates: &[u32], s: &mut Scratch) -> RayResult {
     let mut cands = std::mem::take(&mut s.cands);
-    tile_cands(p.balls, candidates, &mut cands);
-    let r = first_hit_tile(p, ray, &cands, s);
+    let origin = ray.origin.as_dvec3();
+    tile_cands(p.balls, candidates, origin, &mut cands);
+    let r = first_hit_tile(p, ray, &cands, origin, s);
     s.cands = cands;
     r
 }
 
-/// [`first_hit`] for a tile's candidates made by [`tile_cands`].
+/// [`first_hit`] for a tile's candidates made by [`tile_cands`] (or
+/// [`Cand::new`]) for rays from `origin`: fastest for a ray from there.
 pub fn first_hit_tile(
     p: &RayParams<'_>,
     ray: &Ray,
     candidates: &[Cand],
+    origin: DVec3,
     s: &mut Scratch,
 ) -> RayResult {
     match p.kernel {
-        Kernel::Wyvill => first_hit_n::<6, true>(p, ray, candidates, s),
-        Kernel::Murakami => first_hit_n::<4, true>(p, ray, candidates, s),
+        Kernel::Wyvill => first_hit_n::<6, true>(p, ray, candidates, origin, s),
+        Kernel::Murakami => first_hit_n::<4, true>(p, ray, candidates, origin, s),
     }
 }
 
@@ -360,13 +377,24 @@ fn first_hit_n<const N: usize, const BOUND: bool>(
     p: &RayParams<'_>,
     ray: &Ray,
     candidates: &[Cand],
+    origin: DVec3,
     s: &mut Scratch,
 ) -> RayResult {
     s.heap.clear();
     s.met.clear();
     s.active.clear();
     let o = ray.origin.as_dvec3();
+    // A unit direction to rounding in f64 (the `f32` one is unit to about
+    // 1e-7), so that a ball's squared distance from the line is `|oc|² −
+    // b²`; `t` along it is the ray's own `t` times `inv_len`.
     let d = ray.dir.as_dvec3();
+    let inv_len = 1.0 / d.length();
+    let d = d * inv_len;
+    // The candidates' centres are relative to `origin`: a ray from
+    // elsewhere (orthographic, a test) moves them (exactly 0 when it
+    // starts there).
+    let shift = origin - o;
+    let from_origin = shift == DVec3::ZERO;
     let kernel = p.kernel;
     let sc = p.scale;
     let inv_sc = 1.0 / sc;
@@ -382,6 +410,9 @@ fn first_hit_n<const N: usize, const BOUND: bool>(
     // +1: search for F − T rising through 0; −1 when the ray starts inside;
     // 0 until the first interval tested.
     let mut sign = 0.0f64;
+    // The smallest `b` of the balls entered since nothing was last active:
+    // before it every active ball's kernel rises along the ray, so `F` does.
+    let mut rising_to = f64::INFINITY;
     let mut next = 0usize;
     loop {
         // Take every candidate that may enter before the next event.
@@ -392,9 +423,19 @@ fn first_hit_n<const N: usize, const BOUND: bool>(
                 break;
             }
             next += 1;
-            let Some(Chord { b, h2, t0, t1 }) = chord(fb.center, fb.r2, o, d) else {
-                continue;
+            let oc = fb.oc + shift;
+            let oc2 = if from_origin {
+                fb.oc2
+            } else {
+                oc.length_squared()
             };
+            let b = oc.dot(d);
+            let h2 = oc2 - b * b;
+            if h2 >= fb.r2 {
+                continue;
+            }
+            let half = (fb.r2 - h2).sqrt();
+            let (t0, t1) = (b - half, b + half);
             if t1 <= t_cur {
                 continue;
             }
@@ -424,7 +465,16 @@ fn first_hit_n<const N: usize, const BOUND: bool>(
         };
         let t_ev = ev.t();
         // The interval [t_cur, t_ev] with the active set fixed.
-        if active > 0 && t_ev > t_cur && (!BOUND || sign < 0.0 || peak + PEAK_SLACK >= p.threshold)
+        if active > 0
+            && t_ev > t_cur
+            && (!BOUND || sign < 0.0 || peak + PEAK_SLACK >= p.threshold)
+            // Outside the surface with `F` rising on the interval: a root
+            // only if `F` reaches `T` by its end (one evaluation, where the
+            // shift and bound below take several times as long).
+            && !(BOUND
+                && sign > 0.0
+                && t_ev <= rising_to
+                && poly::eval_n::<N>(&poly, (t_ev - t_org) * inv_sc) < p.threshold)
         {
             // F − T in the interval's own coordinate x = (t − t_cur)/S.
             let mut q = poly;
@@ -445,7 +495,7 @@ fn first_hit_n<const N: usize, const BOUND: bool>(
                 let t = t_cur + x * sc;
                 s.last_hit = Some(t);
                 return RayResult {
-                    t: Some(t),
+                    t: Some(t * inv_len),
                     met: s.met.len() as u32,
                 };
             }
@@ -458,6 +508,7 @@ fn first_hit_n<const N: usize, const BOUND: bool>(
             if active == 0 {
                 poly = [0.0; MAX_TERMS];
                 peak = 0.0;
+                rising_to = f64::INFINITY;
                 continue;
             }
             let m = &s.met[slot as usize];
@@ -485,6 +536,7 @@ fn first_hit_n<const N: usize, const BOUND: bool>(
             let m = &mut s.met[slot as usize];
             m.peak = peak_of(kernel, m.h2, m.inv_r2);
             peak += m.peak;
+            rising_to = rising_to.min(m.b);
             let kp = compose_at(kernel, m, t_org, sc);
             for (a, c) in poly.iter_mut().zip(kp).take(N + 1) {
                 *a += c;
@@ -710,13 +762,14 @@ mod tests {
             let (mut sa, mut sb, mut hits) = (Scratch::default(), Scratch::default(), 0);
             let (mut plain, mut tight) = (Vec::new(), Vec::new());
             let mut dropped = 0;
+            let eye = f.position().as_dvec3();
             for ty in 0..lists.rows {
                 for tx in 0..lists.cols {
                     let rect = lists.rect(tx, ty);
-                    tile_cands(&lists.balls, lists.candidates(tx, ty), &mut plain);
+                    tile_cands(&lists.balls, lists.candidates(tx, ty), eye, &mut plain);
                     tight.clone_from(&plain);
                     // Not all of the list: 2 radii past its first.
-                    tighten_tile(&f, &rect, &mut tight, 1.8);
+                    tighten_tile(&f, &rect, &mut tight, eye, 1.8);
                     dropped += plain.len() - tight.len();
                     assert!(
                         tight
@@ -728,7 +781,8 @@ mod tests {
                             let ray = f.ray(i, j);
                             let (o, d) = (ray.origin.as_dvec3(), ray.dir.as_dvec3());
                             for c in &plain {
-                                let Some(ch) = chord(c.center, c.r2, o, d) else {
+                                let center = lists.balls[c.ball as usize].center;
+                                let Some(ch) = chord(center, c.r2, o, d) else {
                                     continue;
                                 };
                                 if ch.t1 <= 0.0 {
@@ -744,8 +798,8 @@ mod tests {
                                     kept.t_lo
                                 );
                             }
-                            let a = first_hit_tile(&p, &ray, &plain, &mut sa);
-                            let b = first_hit_tile(&p, &ray, &tight, &mut sb);
+                            let a = first_hit_tile(&p, &ray, &plain, eye, &mut sa);
+                            let b = first_hit_tile(&p, &ray, &tight, eye, &mut sb);
                             assert_eq!(a.t.map(f64::to_bits), b.t.map(f64::to_bits), "{i},{j}");
                             hits += a.t.is_some() as u32;
                         }
@@ -782,15 +836,16 @@ mod tests {
                 for j in 0..40 {
                     for i in 0..48 {
                         let ray = f.ray(i, j);
-                        tile_cands(&lists.balls, lists.candidates(i / 16, j / 16), &mut tile);
+                        let o = ray.origin.as_dvec3();
+                        tile_cands(&lists.balls, lists.candidates(i / 16, j / 16), o, &mut tile);
                         let cands = &tile;
                         let with = match kernel {
-                            Kernel::Wyvill => first_hit_n::<6, true>(&p, &ray, cands, &mut s),
-                            Kernel::Murakami => first_hit_n::<4, true>(&p, &ray, cands, &mut s),
+                            Kernel::Wyvill => first_hit_n::<6, true>(&p, &ray, cands, o, &mut s),
+                            Kernel::Murakami => first_hit_n::<4, true>(&p, &ray, cands, o, &mut s),
                         };
                         let without = match kernel {
-                            Kernel::Wyvill => first_hit_n::<6, false>(&p, &ray, cands, &mut s),
-                            Kernel::Murakami => first_hit_n::<4, false>(&p, &ray, cands, &mut s),
+                            Kernel::Wyvill => first_hit_n::<6, false>(&p, &ray, cands, o, &mut s),
+                            Kernel::Murakami => first_hit_n::<4, false>(&p, &ray, cands, o, &mut s),
                         };
                         match (with.t, without.t) {
                             (Some(a), Some(b)) => {

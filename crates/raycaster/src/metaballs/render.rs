@@ -307,11 +307,15 @@ fn render_tile(job: &TileJob<'_>, (tx, ty): (u32, u32)) -> (Vec<u8>, u64) {
     let mut scratch = Scratch::default();
     let mut shadow_scratch = ShadowScratch::default();
     let mut tile = Vec::new();
-    ray::tile_cands(job.params.balls, cands, &mut tile);
+    // Perspective rays all start at the eye: the candidates are kept
+    // relative to it.
+    let eye = job.frame.position().as_dvec3();
+    ray::tile_cands(job.params.balls, cands, eye, &mut tile);
     ray::tighten_tile(
         job.frame,
         &rect,
         &mut tile,
+        eye,
         TIGHTEN_DEPTH * job.params.scale,
     );
     let mut rgb = Vec::with_capacity(3 * rect.area() as usize);
@@ -320,7 +324,7 @@ fn render_tile(job: &TileJob<'_>, (tx, ty): (u32, u32)) -> (Vec<u8>, u64) {
     for j in rect.y0..rect.y1 {
         for i in rect.x0..rect.x1 {
             let r = job.frame.ray(i, j);
-            let res = ray::first_hit_tile(job.params, &r, &tile, &mut scratch);
+            let res = ray::first_hit_tile(job.params, &r, &tile, eye, &mut scratch);
             met += res.met as u64;
             let px = match res.t {
                 Some(t) => {

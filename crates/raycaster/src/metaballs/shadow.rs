@@ -211,7 +211,7 @@ impl ShadowGrid {
                 let fb = &self.balls[k as usize];
                 match chord(fb.center, fb.r2, o, d) {
                     Some(Chord { t0, t1, .. }) if t1 > 0.0 && t0 < len => {
-                        s.cands.push(Cand::new(fb, t0, k))
+                        s.cands.push(Cand::new(fb, t0, k, o))
                     }
                     _ => {}
                 }
@@ -221,7 +221,7 @@ impl ShadowGrid {
             }
             s.cands
                 .sort_unstable_by(|a, b| a.t_lo().total_cmp(&b.t_lo()));
-            ray::first_hit_tile(p, &entry, &s.cands, &mut s.scratch)
+            ray::first_hit_tile(p, &entry, &s.cands, o, &mut s.scratch)
                 .t
                 .is_some()
         })
@@ -511,11 +511,11 @@ mod tests {
                 .enumerate()
                 .filter_map(|(k, fb)| {
                     let c = chord(fb.center, fb.r2, o, d)?;
-                    (c.t1 > 0.0).then(|| Cand::new(fb, c.t0, k as u32))
+                    (c.t1 > 0.0).then(|| Cand::new(fb, c.t0, k as u32, o))
                 })
                 .collect();
             all.sort_unstable_by(|a, b| a.t_lo().total_cmp(&b.t_lo()));
-            let want = ray::first_hit_tile(&params, &ray, &all, &mut scratch)
+            let want = ray::first_hit_tile(&params, &ray, &all, o, &mut scratch)
                 .t
                 .is_some();
             assert_eq!(
