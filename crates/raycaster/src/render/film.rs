@@ -42,11 +42,20 @@ impl Film {
     /// A `width`×`height` film filled with `background` (0..1 per channel).
     pub fn new(width: u32, height: u32, background: Vec3) -> Self {
         let background_rgb = to_bytes(background);
+        let n = width as usize * height as usize;
+        // A black film is zeroed memory, which the allocator gets from the
+        // system already zero (no pass over the pixels, which every tile
+        // then writes anyway); another background is copied in.
+        let rgb = if background_rgb == [0; 3] {
+            vec![0; 3 * n]
+        } else {
+            background_rgb.repeat(n)
+        };
         Film {
             width,
             background,
             background_rgb,
-            rgb: background_rgb.repeat(width as usize * height as usize),
+            rgb,
             counts: Default::default(),
         }
     }
