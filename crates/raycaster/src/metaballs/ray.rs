@@ -814,6 +814,72 @@ mod tests {
     }
 
     #[test]
+    fn candidates_kept_relative_to_another_origin_find_the_same_hits() {
+        // Orthographic tiles (and any caller) test rays from points other
+        // than the origin their candidates were made for: the centres are
+        // moved per ray, which may round differently from the eye's case
+        // but must find the same surface.
+        let mut rng = fastrand::Rng::with_seed(44);
+        let balls = random_balls(&mut rng, 60, 3.0);
+        let eye = Vec3::new(0.5, 1.0, 6.0);
+        let f = Camera::look_at(eye, Vec3::ZERO, 8, 8).frame().unwrap();
+        let lists = TileLists::build(&balls, &f, 8, 8, 8, |_| Vec3::ONE).unwrap();
+        let p = RayParams {
+            balls: &lists.balls,
+            kernel: Kernel::Wyvill,
+            threshold: 0.5,
+            scale: 0.9,
+            tol: 1e-4 * 0.3 / 0.9,
+            shading: None,
+            lights: &[],
+        };
+        let all: Vec<u32> = (0..lists.balls.len() as u32).collect();
+        let by_t_lo = |cands: &mut Vec<Cand>| {
+            cands.sort_unstable_by(|a, b| a.t_lo.total_cmp(&b.t_lo));
+        };
+        let (mut own, mut other) = (Vec::new(), Vec::new());
+        let (mut sa, mut sb, mut hits) = (Scratch::default(), Scratch::default(), 0);
+        for _ in 0..2000 {
+            let o = DVec3::new(
+                rng.f64() * 8.0 - 4.0,
+                rng.f64() * 8.0 - 4.0,
+                5.0 + rng.f64(),
+            );
+            let target = DVec3::new(rng.f64() * 2.0 - 1.0, rng.f64() * 2.0 - 1.0, rng.f64());
+            let ray = Ray {
+                origin: o.as_vec3(),
+                dir: (target - o).normalize().as_vec3(),
+            };
+            let o = ray.origin.as_dvec3();
+            // Every ball, entry bound 0: valid for any ray.
+            tile_cands(&lists.balls, &all, o, &mut own);
+            own.iter_mut().for_each(|c| c.t_lo = 0.0);
+            by_t_lo(&mut own);
+            tile_cands(&lists.balls, &all, eye.as_dvec3(), &mut other);
+            other.iter_mut().for_each(|c| c.t_lo = 0.0);
+            by_t_lo(&mut other);
+            let a = first_hit_tile(&p, &ray, &own, o, &mut sa);
+            let b = first_hit_tile(&p, &ray, &other, eye.as_dvec3(), &mut sb);
+            match (a.t, b.t) {
+                (Some(a), Some(b)) => {
+                    assert!((a - b).abs() < 1e-6, "from {o}: {a} vs {b}");
+                    hits += 1;
+                }
+                (None, None) => {}
+                (a, b) => {
+                    // Only a ray grazing the surface, where two roots lie
+                    // within the tolerance of each other.
+                    let t = a.or(b).unwrap();
+                    let x = o + t * ray.dir.as_dvec3();
+                    let g = field(&lists.balls, Kernel::Wyvill, x) - 0.5;
+                    assert!(g.abs() < 1e-6, "from {o}: {a:?} vs {b:?}, F - T = {g}");
+                }
+            }
+        }
+        assert!(hits > 200, "{hits}");
+    }
+
+    #[test]
     fn the_peak_bound_changes_no_hit() {
         let mut rng = fastrand::Rng::with_seed(8);
         for kernel in [Kernel::Wyvill, Kernel::Murakami] {
