@@ -104,6 +104,7 @@ pub fn detect_claim(path: &Path) -> Result<(FileFormat, Claim)> {
     detect_strongest(path).map(|(claim, (format, _))| (format, claim))
 }
 
+/// The format and reader of [`detect_strongest`].
 fn detect_reader(path: &Path) -> Result<(FileFormat, &'static dyn Reader)> {
     detect_strongest(path).map(|(_, found)| found)
 }

@@ -662,6 +662,20 @@ mod tests {
             .sum()
     }
 
+    /// The parameters these tests trace with: radii 0.3 to 0.9 (the
+    /// scale the largest), unshaded.
+    fn test_params(balls: &[FrameBall], kernel: Kernel, threshold: f64) -> RayParams<'_> {
+        RayParams {
+            balls,
+            kernel,
+            threshold,
+            scale: 0.9,
+            tol: 1e-4 * 0.3 / 0.9,
+            shading: None,
+            lights: &[],
+        }
+    }
+
     fn random_balls(rng: &mut fastrand::Rng, n: usize, spread: f32) -> Balls {
         let balls = (0..n)
             .map(|_| Ball {
@@ -748,15 +762,7 @@ mod tests {
             let cam = Camera::look_at(pos, Vec3::ZERO, 45, 38);
             let f = cam.frame().unwrap();
             let lists = TileLists::build(&balls, &f, 45, 38, 16, |_| Vec3::ONE).unwrap();
-            let p = RayParams {
-                balls: &lists.balls,
-                kernel: Kernel::Wyvill,
-                threshold: 0.5,
-                scale: 0.9,
-                tol: 1e-4 * 0.3 / 0.9,
-                shading: None,
-                lights: &[],
-            };
+            let p = test_params(&lists.balls, Kernel::Wyvill, 0.5);
             // One scratch per list: a ray's root search starts at the last
             // hit of its own sequence.
             let (mut sa, mut sb, mut hits) = (Scratch::default(), Scratch::default(), 0);
@@ -824,19 +830,8 @@ mod tests {
         let eye = Vec3::new(0.5, 1.0, 6.0);
         let f = Camera::look_at(eye, Vec3::ZERO, 8, 8).frame().unwrap();
         let lists = TileLists::build(&balls, &f, 8, 8, 8, |_| Vec3::ONE).unwrap();
-        let p = RayParams {
-            balls: &lists.balls,
-            kernel: Kernel::Wyvill,
-            threshold: 0.5,
-            scale: 0.9,
-            tol: 1e-4 * 0.3 / 0.9,
-            shading: None,
-            lights: &[],
-        };
+        let p = test_params(&lists.balls, Kernel::Wyvill, 0.5);
         let all: Vec<u32> = (0..lists.balls.len() as u32).collect();
-        let by_t_lo = |cands: &mut Vec<Cand>| {
-            cands.sort_unstable_by(|a, b| a.t_lo.total_cmp(&b.t_lo));
-        };
         let (mut own, mut other) = (Vec::new(), Vec::new());
         let (mut sa, mut sb, mut hits) = (Scratch::default(), Scratch::default(), 0);
         for _ in 0..2000 {
@@ -851,13 +846,12 @@ mod tests {
                 dir: (target - o).normalize().as_vec3(),
             };
             let o = ray.origin.as_dvec3();
-            // Every ball, entry bound 0: valid for any ray.
-            tile_cands(&lists.balls, &all, o, &mut own);
-            own.iter_mut().for_each(|c| c.t_lo = 0.0);
-            by_t_lo(&mut own);
-            tile_cands(&lists.balls, &all, eye.as_dvec3(), &mut other);
-            other.iter_mut().for_each(|c| c.t_lo = 0.0);
-            by_t_lo(&mut other);
+            // Every ball, entry bound 0 (valid for any ray, and the lists
+            // stay in `t_lo` order).
+            for (list, origin) in [(&mut own, o), (&mut other, eye.as_dvec3())] {
+                tile_cands(&lists.balls, &all, origin, list);
+                list.iter_mut().for_each(|c| c.t_lo = 0.0);
+            }
             let a = first_hit_tile(&p, &ray, &own, o, &mut sa);
             let b = first_hit_tile(&p, &ray, &other, eye.as_dvec3(), &mut sb);
             match (a.t, b.t) {
@@ -888,15 +882,7 @@ mod tests {
                 let cam = Camera::look_at(Vec3::new(0.5, 1.0, 6.0), Vec3::ZERO, 48, 40);
                 let f = cam.frame().unwrap();
                 let lists = TileLists::build(&balls, &f, 48, 40, 16, |_| Vec3::ONE).unwrap();
-                let p = RayParams {
-                    balls: &lists.balls,
-                    kernel,
-                    threshold,
-                    scale: 0.9,
-                    tol: 1e-4 * 0.3 / 0.9,
-                    shading: None,
-                    lights: &[],
-                };
+                let p = test_params(&lists.balls, kernel, threshold);
                 let (mut s, mut hits) = (Scratch::default(), 0);
                 let mut tile = Vec::new();
                 for j in 0..40 {
