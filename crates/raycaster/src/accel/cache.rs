@@ -35,14 +35,14 @@
 //! | bytes | content |
 //! |---|---|
 //! | 0..8 | magic `RCMCIDX\0` |
-//! | 8..12 | version, `u32` (1) |
+//! | 8..12 | version, `u32` (2) |
 //! | 12..20 | the volume file's length, `u64` |
 //! | 20..28, 28..32 | its modification time: seconds since the Unix epoch `i64`, nanoseconds `u32` |
 //! | 32..36 | the CRC-32 fingerprint of its sampled bytes, `u32` |
 //! | 36..40, 40.. | length `u32` and UTF-8 bytes of the description of how it was read |
 //! | then | sample type `u8` (0 u8, 1 i8, 2 u16, 3 i16, 4 f32), dimensions 3 × `u32`, macrocell side `u32`, cells per axis 3 × `u32` |
 //! | then | per cell (x slowest, z fastest) its minimum and maximum in the sample type |
-//! | then | the uniform flags, one bit per cell, least significant bit first |
+//! | then | the uniform flags ([`MacrocellGrid::uniform`]), one bit per cell, least significant bit first |
 //! | last 4 | CRC-32 of all bytes before it |
 
 use std::io::{Read, Seek, SeekFrom};
@@ -54,7 +54,10 @@ use super::MacrocellGrid;
 use crate::sample::SampleType;
 
 const MAGIC: &[u8; 8] = b"RCMCIDX\0";
-const VERSION: u32 = 1;
+/// 2 since the uniform flags include the cells found by their voxel shells
+/// (version 1 held those the ranges alone give: still right, but a
+/// version-1 file is rebuilt so that shaded frames get the faster flags).
+const VERSION: u32 = 2;
 /// Bytes of the file's start in the fingerprint: every header the readers
 /// parse (NIfTI's 352 bytes, NRRD's text header, the `.vol` 26 bytes).
 const HEAD_BYTES: u64 = 64 << 10;

@@ -3,7 +3,7 @@
 use crate::format::Progress;
 use crate::sample::{Sample, SampleTypeVisitor};
 use crate::volume::{AnyAddressing, AnyVolume, Volume, VolumeVisitor, cell_coord};
-use glam::{UVec3, Vec3};
+use glam::{IVec3, UVec3, Vec3};
 
 /// Value range per macrocell.
 ///
@@ -18,10 +18,16 @@ pub struct MacrocellGrid {
     pub count: UVec3,
     /// `(min, max)` per cell, x slowest, z fastest.
     pub ranges: Vec<(f32, f32)>,
-    /// Per cell: true when the cell and its 26 neighbours hold one single
-    /// value. Inside such a cell every sample has that value and every
-    /// central-difference gradient is zero, so a ray can composite a run of
-    /// samples there in closed form.
+    /// Per cell: true when every voxel of the cell's box and the voxels one
+    /// beyond it (clamped to the grid) hold one single value. Inside such a
+    /// cell every sample has that value and every central-difference
+    /// gradient is zero, so a ray can composite a run of samples there
+    /// without taking them, shaded or not. [`MacrocellGrid::from_ranges`]
+    /// alone finds the cells whose 26 neighbours hold the cell's value
+    /// (known from the ranges); the builds that read the voxels
+    /// ([`MacrocellGrid::build`], [`MacrocellGrid::build_any`]) also find
+    /// the constant cells next to a mixed one whose shell of voxels still
+    /// holds their value ([`MacrocellGrid::find_uniform_shells`]).
     pub uniform: Vec<bool>,
 }
 
@@ -31,7 +37,9 @@ impl MacrocellGrid {
     pub fn build<V: Volume>(volume: &V, cell: u32) -> Self {
         let cell = cell.max(1);
         let count = Self::count_for(volume.grid().dims, cell);
-        Self::from_ranges(cell, count, volume.cell_value_ranges(cell, count))
+        let mut grid = Self::from_ranges(cell, count, volume.cell_value_ranges(cell, count));
+        grid.find_uniform_shells(volume);
+        grid
     }
 
     /// Builds the grid for a volume of any layout on the current rayon pool,
@@ -99,9 +107,84 @@ impl MacrocellGrid {
                 volume.visit(Rows(cell, count))
             }
         };
-        let grid = Self::from_ranges(cell, count, ranges);
+        let mut grid = Self::from_ranges(cell, count, ranges);
+        struct Shells<'a>(&'a mut MacrocellGrid);
+        impl VolumeVisitor for Shells<'_> {
+            type Output = ();
+            fn visit<V: Volume>(self, v: &V) {
+                self.0.find_uniform_shells(v)
+            }
+        }
+        volume.visit(Shells(&mut grid));
+        if let AnyAddressing::Bricked(_) = volume.addressing() {
+            // The shells read voxels of bricks the pass had let go.
+            volume.storage().release_pages(0..usize::MAX);
+        }
         report(1.0);
         grid
+    }
+
+    /// Marks as uniform the constant cells that [`MacrocellGrid::from_ranges`]
+    /// could not: those with a neighbour of another value or range, whose
+    /// voxels one beyond the cell's box (the central differences of the
+    /// cell's corners reach that far) all hold the cell's value anyway.
+    /// That is the common case next to a surface that does not lie on the
+    /// cell's face: shaded rays then composite the cell's samples in one run
+    /// instead of marching them. Only the parts of the shell inside a
+    /// neighbour that is not constant at the cell's value are read.
+    pub fn find_uniform_shells<V: Volume>(&mut self, volume: &V) {
+        use rayon::prelude::*;
+        let (m, n) = (self.cell, self.count);
+        let last = volume.grid().dims.saturating_sub(UVec3::ONE);
+        let ranges = &self.ranges;
+        let index =
+            |c: UVec3| (c.x as usize * n.y as usize + c.y as usize) * n.z as usize + c.z as usize;
+        // The part of the shell of `c` in direction `d` (−1, 0, 1 per axis)
+        // holds `v` (an empty part does).
+        let part_holds = |c: UVec3, d: [i32; 3], v: f32| -> bool {
+            let (mut lo, mut hi) = (UVec3::ZERO, UVec3::ZERO);
+            for a in 0..3 {
+                let (c0, c1) = (c[a] * m, (c[a] * m + m).min(last[a]));
+                (lo[a], hi[a]) = match d[a] {
+                    -1 if c0 == 0 => return true,
+                    -1 => (c0 - 1, c0 - 1),
+                    0 => (c0, c1),
+                    _ if c1 + 1 > last[a] => return true,
+                    _ => (c1 + 1, c1 + 1),
+                };
+            }
+            // Voxel by voxel, to stop at the first of another value (a
+            // part crossed by a surface usually has one near its start).
+            (lo.x..=hi.x).all(|x| {
+                (lo.y..=hi.y)
+                    .all(|y| (lo.z..=hi.z).all(|z| volume.voxel(UVec3::new(x, y, z)).to_f32() == v))
+            })
+        };
+        let cells_per_x = (n.y * n.z) as usize;
+        self.uniform
+            .par_chunks_mut(cells_per_x.max(1))
+            .enumerate()
+            .for_each(|(x, plane)| {
+                for (yz, u) in plane.iter_mut().enumerate() {
+                    let c = UVec3::new(
+                        x as u32,
+                        (yz / n.z as usize) as u32,
+                        (yz % n.z as usize) as u32,
+                    );
+                    let (v, hi) = ranges[index(c)];
+                    if *u || v != hi {
+                        continue;
+                    }
+                    *u = SHELL_PARTS.iter().all(|&d| {
+                        let nb = c.as_ivec3() + IVec3::from_array(d);
+                        let inside = nb.cmpge(IVec3::ZERO).all() && nb.cmplt(n.as_ivec3()).all();
+                        // A neighbour constant at `v` holds its part of
+                        // the shell (which lies in its box); outside the
+                        // grid there is nothing to hold.
+                        !inside || ranges[index(nb.as_uvec3())] == (v, v) || part_holds(c, d, v)
+                    });
+                }
+            });
     }
 
     /// Cells per axis of a grid of `cell`-voxel cells over `dims` voxels.
@@ -187,6 +270,28 @@ impl MacrocellGrid {
             })
     }
 }
+
+/// The 26 directions from a cell to its neighbours, faces first: a cell
+/// next to a surface fails on a face part, and then reads no other.
+const SHELL_PARTS: [[i32; 3]; 26] = {
+    let mut parts = [[0; 3]; 26];
+    let mut n = 0;
+    // Faces (one non-zero component), then edges (two), then corners.
+    let mut nonzero = 1;
+    while nonzero <= 3 {
+        let mut k = 0;
+        while k < 27 {
+            let d = [k / 9 - 1, k / 3 % 3 - 1, k % 3 - 1];
+            if (d[0] != 0) as i32 + (d[1] != 0) as i32 + (d[2] != 0) as i32 == nonzero {
+                parts[n] = d;
+                n += 1;
+            }
+            k += 1;
+        }
+        nonzero += 1;
+    }
+    parts
+};
 
 /// Marks the cells whose 3×3×3 neighbourhood (clamped to the grid) holds one
 /// value, in three separable passes (z, then y, then x).
@@ -341,5 +446,86 @@ mod tests {
                 }
             }
         }
+    }
+
+    /// The builds that read the voxels mark a cell uniform exactly when
+    /// every voxel of its box and one beyond it (clamped to the grid) holds
+    /// one value, checked voxel by voxel, on both layouts; and they find
+    /// cells next to a mixed one that the ranges alone cannot.
+    #[test]
+    fn uniform_shells_match_brute_force() {
+        let mut rng = fastrand::Rng::with_seed(9);
+        let mut beyond_ranges = 0;
+        for case in 0..40 {
+            let dims = UVec3::new(rng.u32(1..30), rng.u32(1..30), rng.u32(1..30));
+            let cell = rng.u32(1..6);
+            let grid = Grid::new(dims, Vec3::ONE);
+            // Boxes of two values on a third, with edges anywhere (on a
+            // cell's face, one voxel from it, inside it), and a few lone
+            // voxels of another value.
+            let boxes: Vec<(UVec3, UVec3, u8)> = (0..3)
+                .map(|_| {
+                    let lo = UVec3::new(rng.u32(0..dims.x), rng.u32(0..dims.y), rng.u32(0..dims.z));
+                    let hi = lo + UVec3::new(rng.u32(1..20), rng.u32(1..20), rng.u32(1..20));
+                    (lo, hi, rng.u8(1..3))
+                })
+                .collect();
+            let specks: Vec<UVec3> = (0..2)
+                .map(|_| UVec3::new(rng.u32(0..dims.x), rng.u32(0..dims.y), rng.u32(0..dims.z)))
+                .collect();
+            let value = |p: UVec3| -> u8 {
+                if specks.contains(&p) {
+                    return 9;
+                }
+                boxes
+                    .iter()
+                    .find(|(lo, hi, _)| p.cmpge(*lo).all() && p.cmplt(*hi).all())
+                    .map_or(0, |b| b.2)
+            };
+            let linear = AnyVolume::from_fn(grid, value);
+            let bricked = AnyVolume::bricked_from_fn(grid, rng.u32(2..9), value).unwrap();
+            let got = MacrocellGrid::build_any(&linear, cell, None);
+            let n = got.count;
+            let coarse = MacrocellGrid::from_ranges(cell, n, got.ranges.clone());
+            for x in 0..n.x {
+                for y in 0..n.y {
+                    for z in 0..n.z {
+                        let c = UVec3::new(x, y, z);
+                        let lo = (c * cell).saturating_sub(UVec3::ONE);
+                        let hi = (c * cell + UVec3::splat(cell + 1)).min(dims - UVec3::ONE);
+                        let first = value(lo);
+                        let mut want = true;
+                        for vx in lo.x..=hi.x {
+                            for vy in lo.y..=hi.y {
+                                for vz in lo.z..=hi.z {
+                                    want &= value(UVec3::new(vx, vy, vz)) == first;
+                                }
+                            }
+                        }
+                        let i = got.index(c);
+                        assert_eq!(
+                            got.uniform[i], want,
+                            "case {case}: cell {c} of {n}, side {cell}"
+                        );
+                        beyond_ranges += (want && !coarse.uniform[i]) as usize;
+                    }
+                }
+            }
+            let from_bricks = MacrocellGrid::build_any(&bricked, cell, None);
+            assert!(from_bricks.uniform == got.uniform, "case {case}: bricked");
+            struct Build(u32);
+            impl VolumeVisitor for Build {
+                type Output = MacrocellGrid;
+                fn visit<V: Volume>(self, v: &V) -> MacrocellGrid {
+                    MacrocellGrid::build(v, self.0)
+                }
+            }
+            assert!(
+                linear.visit(Build(cell)).uniform == got.uniform,
+                "case {case}: build"
+            );
+        }
+        // The shells found cells the neighbours' ranges could not.
+        assert!(beyond_ranges > 100, "{beyond_ranges}");
     }
 }
