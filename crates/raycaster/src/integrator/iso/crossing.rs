@@ -156,6 +156,154 @@ impl CellCubic {
         None
     }
 
+    /// [`CellCubic::first_crossing_unproven`] of the lanes in `open` of
+    /// `cubics` at once: per lane the crossing's `t` in `[0, len]`, `NaN`
+    /// where there is none (or for a lane not in `open`). Each lane goes
+    /// through the scalar function's operations in its order, so it gets
+    /// the same bits; its branches become selections, and the refinement
+    /// runs until the last open lane is done, so the lanes' different
+    /// paths cost no mispredicted branches.
+    #[inline(always)]
+    pub fn first_crossings_unproven<const N: usize>(
+        cubics: &[CellCubic; N],
+        len: &[f32; N],
+        tol: &[f32; N],
+        open: u32,
+    ) -> [f32; N] {
+        let mut out = [f32::NAN; N];
+        // The bracket of each lane's first crossing: the first piece
+        // between extrema whose ends lie on different sides.
+        let mut side = [false; N];
+        let mut lo = [0.0f32; N];
+        let mut g_lo = [0.0f32; N];
+        let mut hi = [0.0f32; N];
+        let mut g_hi = [0.0f32; N];
+        let mut bracketed = [false; N];
+        for l in 0..N {
+            let c = &cubics[l];
+            let g0 = c.eval(0.0);
+            side[l] = g0 >= 0.0;
+            let [e0, e1] = if c.monotonic(len[l]) {
+                [f32::NAN; 2]
+            } else {
+                c.extrema_selected(len[l])
+            };
+            let (mut lo_l, mut g_lo_l, mut found) = (0.0f32, g0, false);
+            for h in [e0, e1, len[l]] {
+                let g_h = c.eval(h);
+                let take = !found && !h.is_nan();
+                let crosses = take && ((g_h >= 0.0) != side[l]);
+                if crosses {
+                    (hi[l], g_hi[l]) = (h, g_h);
+                }
+                if take && !crosses {
+                    (lo_l, g_lo_l) = (h, g_h);
+                }
+                found |= crosses;
+            }
+            (lo[l], g_lo[l], bracketed[l]) = (lo_l, g_lo_l, found && (open >> l) & 1 != 0);
+        }
+        // `refine`, lane-wise.
+        let mut t = [0.0f32; N];
+        let mut active = 0u32;
+        for l in 0..N {
+            let chord = lo[l] + (hi[l] - lo[l]) * (g_lo[l] / (g_lo[l] - g_hi[l]));
+            t[l] = if chord > lo[l] && chord < hi[l] {
+                chord
+            } else {
+                0.5 * (lo[l] + hi[l])
+            };
+            active |= (bracketed[l] as u32) << l;
+        }
+        let mut rounds = 0;
+        while active != 0 && rounds < 48 {
+            rounds += 1;
+            let mut done = [0u32; N];
+            for l in 0..N {
+                let c = &cubics[l];
+                let g = c.eval(t[l]);
+                let on = (g >= 0.0) == side[l];
+                let (lo_n, hi_n) = if on { (t[l], hi[l]) } else { (lo[l], t[l]) };
+                let is_active = (active >> l) & 1 != 0;
+                if is_active {
+                    (lo[l], hi[l]) = (lo_n, hi_n);
+                }
+                let d = c.slope(t[l]);
+                let newton = t[l] - g / d;
+                let narrow = hi_n - lo_n <= tol[l];
+                let still = (newton - t[l]).abs() <= 0.5 * tol[l];
+                // `f32::clamp` without its assertion (an inactive lane's
+                // bracket may be anything).
+                let mut clamped = newton;
+                if clamped < lo_n {
+                    clamped = lo_n;
+                }
+                if clamped > hi_n {
+                    clamped = hi_n;
+                }
+                let result = if narrow { 0.5 * (lo_n + hi_n) } else { clamped };
+                let next = if newton > lo_n && newton < hi_n {
+                    newton
+                } else {
+                    0.5 * (lo_n + hi_n)
+                };
+                let finished = narrow || still;
+                if is_active && finished {
+                    out[l] = result;
+                }
+                if is_active && !finished {
+                    t[l] = next;
+                }
+                done[l] = (is_active && finished) as u32;
+            }
+            for (l, &d) in done.iter().enumerate() {
+                active &= !(d << l);
+            }
+        }
+        // Lanes the 48 rounds did not settle end where they are, as the
+        // scalar loop does.
+        for l in 0..N {
+            if (active >> l) & 1 != 0 {
+                out[l] = t[l];
+            }
+        }
+        out
+    }
+
+    /// [`CellCubic::extrema`] with its branches as selections, for
+    /// [`CellCubic::first_crossings_unproven`]: the same values.
+    #[inline(always)]
+    fn extrema_selected(&self, len: f32) -> [f32; 2] {
+        let (qa, qb, qc) = (3.0 * self.a, 2.0 * self.b, self.c);
+        let scale = qa.abs().max(qb.abs()).max(qc.abs());
+        // Effectively a quadratic g: one extremum.
+        let linear = qa.abs() <= 1e-7 * scale;
+        let lin_root = if qb != 0.0 { -qc / qb } else { f32::NAN };
+        let disc = qb * qb - 4.0 * qa * qc;
+        let s = disc.sqrt();
+        let q = -0.5 * (qb + if qb >= 0.0 { s } else { -s });
+        let (r0, r1) = (q / qa, if q != 0.0 { qc / q } else { f32::NAN });
+        let pair = if r0 <= r1 { [r0, r1] } else { [r1, r0] };
+        let mut r = if scale == 0.0 {
+            [f32::NAN; 2]
+        } else if linear {
+            [lin_root, f32::NAN]
+        } else if disc < 0.0 {
+            [f32::NAN; 2]
+        } else {
+            pair
+        };
+        for x in &mut r {
+            if !(*x > 0.0 && *x < len) {
+                *x = f32::NAN;
+            }
+        }
+        if r[0].is_nan() {
+            r = [r[1], f32::NAN];
+        }
+        r
+    }
+
     /// A cheap proof that `g` keeps the side `side` on all of `[0, len]`,
     /// which most cells a ray crosses without a crossing pass (they only
     /// clip a corner of the surface's cell): the cubic's Bernstein
@@ -307,6 +455,61 @@ mod tests {
         }
         // Both kinds occur, so the test tests something.
         assert!(proven > 100 && not > 100, "{proven} proven, {not} not");
+    }
+
+    /// The lane-wise search gives every open lane the scalar search's bits
+    /// (and `NaN` where it finds nothing or the lane is closed), on cubics
+    /// of every kind: random corners, near-double roots, quadratics and
+    /// constants along the ray, intervals of any length.
+    #[test]
+    fn lanes_find_the_scalar_crossings_to_the_bit() {
+        let mut rng = fastrand::Rng::with_seed(8);
+        let (mut found, mut none) = (0, 0);
+        for round in 0..4000 {
+            let cubics: [CellCubic; 8] = std::array::from_fn(|_| {
+                let mut c = random_corners(&mut rng);
+                match rng.u32(0..5) {
+                    // Flat along x and y: a linear or constant g.
+                    0 => {
+                        for k in 4..8 {
+                            c[k] = c[k - 4];
+                        }
+                    }
+                    // Corners near the iso value: roots close together.
+                    1 => c.iter_mut().for_each(|v| *v *= 1e-3),
+                    _ => {}
+                }
+                let p0 = Vec3::new(rng.f32(), rng.f32(), rng.f32());
+                let dir = Vec3::new(rng.f32() - 0.5, rng.f32() - 0.5, rng.f32() - 0.5);
+                CellCubic::new(&c, p0, dir, 0.0)
+            });
+            let len: [f32; 8] = std::array::from_fn(|_| rng.f32() * 1.5);
+            let tol: [f32; 8] = std::array::from_fn(|_| [1e-5, 1e-3, 1e-6][rng.usize(0..3)]);
+            let open = if round % 2 == 0 {
+                0xff
+            } else {
+                rng.u32(0..256)
+            };
+            let got = CellCubic::first_crossings_unproven(&cubics, &len, &tol, open);
+            for l in 0..8 {
+                let want = if (open >> l) & 1 != 0 {
+                    cubics[l].first_crossing_unproven(len[l], tol[l])
+                } else {
+                    None
+                };
+                match want {
+                    Some(t) => {
+                        found += 1;
+                        assert_eq!(got[l].to_bits(), t.to_bits(), "lane {l} of round {round}");
+                    }
+                    None => {
+                        none += 1;
+                        assert!(got[l].is_nan(), "lane {l} of round {round}: {}", got[l]);
+                    }
+                }
+            }
+        }
+        assert!(found > 2000 && none > 2000, "{found} found, {none} none");
     }
 
     #[test]

@@ -425,16 +425,32 @@ fn walk_group<V: Volume, I: Isa>(
                         cubic[l] = CellCubic::new(&corners, p0, dir, iso);
                         open[l] = (cross && !cubic[l].stays_on(side[l], te[l] - tc[l])) as u32;
                     }
-                    for l in lanes_of(isa.nonzero_mask(&open)) {
-                        let (tc, te, cubic) = (tc[l], te[l], cubic[l]);
-                        let hit = if (cubic.eval(0.0) >= 0.0) != side[l] {
+                    let open = isa.nonzero_mask(&open);
+                    if open == 0 {
+                        continue;
+                    }
+                    // A lane whose cubic is across at the cell's entry hits
+                    // there; the others' crossings are searched together
+                    // (`stays_on` failed just above for each open lane).
+                    let mut across = [0u32; PACKET];
+                    let mut len = [0.0f32; PACKET];
+                    let mut tol = [0.0f32; PACKET];
+                    for l in 0..PACKET {
+                        across[l] = ((cubic[l].eval(0.0) >= 0.0) != side[l]) as u32;
+                        len[l] = te[l] - tc[l];
+                    }
+                    let across = isa.nonzero_mask(&across);
+                    for l in lanes_of(open) {
+                        tol[l] = rays[l].ray.tol;
+                    }
+                    let dt =
+                        CellCubic::first_crossings_unproven(&cubic, &len, &tol, open & !across);
+                    for l in lanes_of(open) {
+                        let tc = tc[l];
+                        let hit = if (across >> l) & 1 != 0 {
                             Some(tc)
                         } else {
-                            let tol = rays[l].ray.tol;
-                            // `stays_on` failed just above: the lane is open.
-                            cubic
-                                .first_crossing_unproven(te - tc, tol)
-                                .map(|dt| tc + dt)
+                            (!dt[l].is_nan()).then(|| tc + dt[l])
                         };
                         if let Some(t) = hit
                             && (t, tc) < (best_t[l], best_tc[l])
