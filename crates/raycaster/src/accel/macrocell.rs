@@ -137,8 +137,8 @@ impl MacrocellGrid {
         let (m, n) = (self.cell, self.count);
         let last = volume.grid().dims.saturating_sub(UVec3::ONE);
         let ranges = &self.ranges;
-        let index =
-            |c: UVec3| (c.x as usize * n.y as usize + c.y as usize) * n.z as usize + c.z as usize;
+        // `self.index`, while `self.uniform` is borrowed for writing.
+        let index = |c: UVec3| cell_index(n, c);
         // The part of the shell of `c` in direction `d` (−1, 0, 1 per axis)
         // holds `v` (an empty part does).
         let part_holds = |c: UVec3, d: [i32; 3], v: f32| -> bool {
@@ -209,7 +209,7 @@ impl MacrocellGrid {
     /// Index of cell `c`.
     #[inline(always)]
     pub fn index(&self, c: UVec3) -> usize {
-        (c.x as usize * self.count.y as usize + c.y as usize) * self.count.z as usize + c.z as usize
+        cell_index(self.count, c)
     }
 
     /// The cell containing voxel-space point `p` (clamped to the grid).
@@ -269,6 +269,12 @@ impl MacrocellGrid {
                 (a.min(lo), b.max(hi))
             })
     }
+}
+
+/// Index of cell `c` in a grid of `count` cells (x slowest, z fastest).
+#[inline(always)]
+fn cell_index(count: UVec3, c: UVec3) -> usize {
+    (c.x as usize * count.y as usize + c.y as usize) * count.z as usize + c.z as usize
 }
 
 /// The 26 directions from a cell to its neighbours, faces first: a cell
