@@ -346,3 +346,51 @@ fn off_neither_reads_nor_writes_and_raw_readings_are_told_apart() {
     );
     assert_eq!(b.scene.grid().dims, UVec3::new(DIMS.z, DIMS.y, DIMS.x));
 }
+
+/// A cache whose uniform flags come from the ranges alone (what a
+/// distributed run's first pass writes: its parts cannot read the voxel
+/// shells across their borders) is completed by the next open, which
+/// finds the cells the shells make uniform and writes the cache again; the
+/// open after that reads it as it is.
+#[test]
+fn a_cache_of_ranges_alone_is_completed_and_kept() {
+    let dir = TempDir::new("cache-shells");
+    let fallback = dir.join("user-cache");
+    for side in [0u8, 16] {
+        let path = dir.join(&format!("balls-{side}.vol"));
+        write_vol(&path, side, balls);
+        let opts = SceneOptions {
+            macrocell: Some(4),
+            ..options(&fallback)
+        };
+        let first = open(&path, &opts);
+        let want = fresh(&path, 4);
+        let built = first.scene.macrocells();
+        assert!(built.shells_found);
+        let ranges_only = MacrocellGrid::from_ranges(built.cell, built.count, built.ranges.clone());
+        let more = (built.uniform.iter().filter(|&&u| u).count())
+            - (ranges_only.uniform.iter().filter(|&&u| u).count());
+        assert!(more > 10, "B = {side}: the shells found {more} cells");
+        let key = cache::CacheKey::of(&path, first.info.format.name()).expect("key");
+        let shape = cache::GridShape {
+            sample_type: SampleType::U8,
+            dims: DIMS,
+            cell: 4,
+        };
+        let sidecar = cache::sidecar_path(&path, 4);
+        cache::store(&sidecar, &key, shape, &ranges_only).expect("store");
+        let second = open(&path, &opts);
+        assert_eq!(
+            second.cache.loaded.as_deref(),
+            Some(&*sidecar),
+            "B = {side}"
+        );
+        assert_eq!(second.cache.saved.as_deref(), Some(&*sidecar), "B = {side}");
+        assert_same_grid(&format!("B = {side}, completed"), &second.scene, &want);
+        let third = open(&path, &opts);
+        assert_eq!(third.cache.loaded.as_deref(), Some(&*sidecar), "B = {side}");
+        assert_eq!(third.cache.saved, None, "B = {side}");
+        assert!(third.scene.macrocells().shells_found);
+        assert_same_grid(&format!("B = {side}, read again"), &third.scene, &want);
+    }
+}

@@ -83,9 +83,24 @@ impl Scene {
             CachePolicy::Auto => cache_key(path, &opened.info, open, &mut report),
         };
         if let Some(key) = &key
-            && let Some(grid) =
+            && let Some(mut grid) =
                 find_cached_macrocells(path, key, shape, options.cache_dir.as_deref(), &mut report)
         {
+            if !grid.shells_found {
+                // A cache written from ranges alone (a distributed run's
+                // first pass): its uniform flags are right but fewer, so
+                // shaded frames would march cells they could composite.
+                // Complete them once and keep them.
+                grid.find_uniform_shells_any(&volume);
+                save_cached_macrocells(
+                    path,
+                    key,
+                    shape,
+                    &grid,
+                    options.cache_dir.as_deref(),
+                    &mut report,
+                );
+            }
             return Ok(OpenedScene {
                 scene: Self::from_grid(volume, grid),
                 info: opened.info,

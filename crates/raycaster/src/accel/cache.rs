@@ -35,13 +35,14 @@
 //! | bytes | content |
 //! |---|---|
 //! | 0..8 | magic `RCMCIDX\0` |
-//! | 8..12 | version, `u32` (2) |
+//! | 8..12 | version, `u32` (3) |
 //! | 12..20 | the volume file's length, `u64` |
 //! | 20..28, 28..32 | its modification time: seconds since the Unix epoch `i64`, nanoseconds `u32` |
 //! | 32..36 | the CRC-32 fingerprint of its sampled bytes, `u32` |
 //! | 36..40, 40.. | length `u32` and UTF-8 bytes of the description of how it was read |
 //! | then | sample type `u8` (0 u8, 1 i8, 2 u16, 3 i16, 4 f32), dimensions 3 × `u32`, macrocell side `u32`, cells per axis 3 × `u32` |
 //! | then | per cell (x slowest, z fastest) its minimum and maximum in the sample type |
+//! | then | `u8` 1 when the uniform flags include the cells found by their voxel shells ([`MacrocellGrid::shells_found`]), else 0 |
 //! | then | the uniform flags ([`MacrocellGrid::uniform`]), one bit per cell, least significant bit first |
 //! | last 4 | CRC-32 of all bytes before it |
 
@@ -54,10 +55,11 @@ use super::MacrocellGrid;
 use crate::sample::SampleType;
 
 const MAGIC: &[u8; 8] = b"RCMCIDX\0";
-/// 2 since the uniform flags include the cells found by their voxel shells
-/// (version 1 held those the ranges alone give: still right, but a
-/// version-1 file is rebuilt so that shaded frames get the faster flags).
-const VERSION: u32 = 2;
+/// 3 since a cache says whether its uniform flags include the cells found
+/// by their voxel shells (a distributed run's first pass writes flags from
+/// the ranges alone; an open completes them). Version 1 held only those
+/// flags, and version 2 did not say which it held: both are rebuilt.
+const VERSION: u32 = 3;
 /// Bytes of the file's start in the fingerprint: every header the readers
 /// parse (NIfTI's 352 bytes, NRRD's text header, the `.vol` 26 bytes).
 const HEAD_BYTES: u64 = 64 << 10;
@@ -261,6 +263,7 @@ fn encode(key: &CacheKey, shape: GridShape, grid: &MacrocellGrid) -> Vec<u8> {
         SampleType::I16 => values.for_each(|v| out.extend_from_slice(&(v as i16).to_le_bytes())),
         SampleType::F32 => values.for_each(|v| out.extend_from_slice(&v.to_le_bytes())),
     }
+    out.push(grid.shells_found as u8);
     for chunk in grid.uniform.chunks(8) {
         out.push(
             chunk
@@ -335,6 +338,11 @@ fn decode(bytes: &[u8], key: &CacheKey, shape: GridShape) -> Result<MacrocellGri
     let cells = count.as_u64vec3().element_product() as usize;
     let size = shape.sample_type.size();
     let values = c.take(cells * 2 * size)?;
+    let shells_found = match c.take(1)?[0] {
+        0 => false,
+        1 => true,
+        _ => return Err(corrupt("bad shells flag")),
+    };
     let uniform = c.take(cells.div_ceil(8))?;
     if !c.0.is_empty() {
         return Err(corrupt("trailing bytes"));
@@ -380,6 +388,7 @@ fn decode(bytes: &[u8], key: &CacheKey, shape: GridShape) -> Result<MacrocellGri
         count,
         ranges,
         uniform,
+        shells_found,
     })
 }
 
@@ -421,12 +430,16 @@ mod tests {
     fn every_sample_type_round_trips() {
         use SampleType::*;
         for t in [U8, I8, U16, I16, F32] {
-            let (shape, g) = grid(t);
-            let bytes = encode(&key(), shape, &g);
-            let back = decode(&bytes, &key(), shape).unwrap();
-            assert_eq!((back.cell, back.count), (g.cell, g.count), "{t}");
-            assert_eq!(back.ranges, g.ranges, "{t}");
-            assert_eq!(back.uniform, g.uniform, "{t}");
+            for shells in [false, true] {
+                let (shape, mut g) = grid(t);
+                g.shells_found = shells;
+                let bytes = encode(&key(), shape, &g);
+                let back = decode(&bytes, &key(), shape).unwrap();
+                assert_eq!((back.cell, back.count), (g.cell, g.count), "{t}");
+                assert_eq!(back.ranges, g.ranges, "{t}");
+                assert_eq!(back.uniform, g.uniform, "{t}");
+                assert_eq!(back.shells_found, shells, "{t}");
+            }
         }
     }
 

@@ -29,6 +29,11 @@ pub struct MacrocellGrid {
     /// the constant cells next to a mixed one whose shell of voxels still
     /// holds their value ([`MacrocellGrid::find_uniform_shells`]).
     pub uniform: Vec<bool>,
+    /// Whether `uniform` includes the cells found by their voxel shells
+    /// ([`MacrocellGrid::find_uniform_shells`]); false for a grid made from
+    /// ranges alone (e.g. combined from the parts of a distributed run),
+    /// whose flags are right but fewer.
+    pub shells_found: bool,
 }
 
 impl MacrocellGrid {
@@ -108,6 +113,15 @@ impl MacrocellGrid {
             }
         };
         let mut grid = Self::from_ranges(cell, count, ranges);
+        grid.find_uniform_shells_any(volume);
+        report(1.0);
+        grid
+    }
+
+    /// [`MacrocellGrid::find_uniform_shells`] for a volume of any sample
+    /// type and layout; a bricked volume's mapped pages are let go after
+    /// (the shells read scattered voxels a frame may never need).
+    pub fn find_uniform_shells_any(&mut self, volume: &AnyVolume) {
         struct Shells<'a>(&'a mut MacrocellGrid);
         impl VolumeVisitor for Shells<'_> {
             type Output = ();
@@ -115,13 +129,10 @@ impl MacrocellGrid {
                 self.0.find_uniform_shells(v)
             }
         }
-        volume.visit(Shells(&mut grid));
+        volume.visit(Shells(self));
         if let AnyAddressing::Bricked(_) = volume.addressing() {
-            // The shells read voxels of bricks the pass had let go.
             volume.storage().release_pages(0..usize::MAX);
         }
-        report(1.0);
-        grid
     }
 
     /// Marks as uniform the constant cells that [`MacrocellGrid::from_ranges`]
@@ -185,6 +196,7 @@ impl MacrocellGrid {
                     });
                 }
             });
+        self.shells_found = true;
     }
 
     /// Cells per axis of a grid of `cell`-voxel cells over `dims` voxels.
@@ -203,6 +215,7 @@ impl MacrocellGrid {
             count,
             ranges,
             uniform,
+            shells_found: false,
         }
     }
 

@@ -34,6 +34,7 @@ pub(crate) fn random_macrocells(
     let len = (count.x * count.y * count.z) as usize;
     MacrocellGrid {
         cell: 4,
+        shells_found: false,
         count,
         ranges: (0..len)
             .map(|_| {

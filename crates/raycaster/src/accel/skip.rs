@@ -726,6 +726,7 @@ mod tests {
             count,
             ranges: vec![(0.0, 0.0); len],
             uniform: vec![false; len],
+            shells_found: false,
         };
         let skip = SkipGrid::all_occupied(&cells);
         let last = count - UVec3::ONE;
