@@ -6,7 +6,7 @@
 //! empty run, composite a cell of one colour without sampling it, march
 //! sample by sample, skip a cell whose range cannot change the result).
 
-use glam::{IVec3, UVec3};
+use glam::UVec3;
 
 use super::SkipGrid;
 use super::skip::{Ahead, CellKind};
@@ -40,7 +40,8 @@ pub struct SampleRun {
 ///
 /// Each run is the macrocell (or empty box) holding its first sample,
 /// found by [`SkipGrid::classify_ahead`]'s rules, and ends at the first sample at
-/// or after the ray leaves that box. A classification from scratch is a
+/// or after the ray leaves that box; empty boxes the ray jumps across one
+/// after another (closing in on a surface) make one run. A classification from scratch is a
 /// chain of dependent steps (the sample's position, its cell, the cell's
 /// box, the box's exit, the next sample) that the processor cannot overlap
 /// from one run to the next. So the runs also walk the macrocells with a
@@ -99,21 +100,41 @@ impl Iterator for SkipRuns<'_> {
             });
         };
         let (cell, index) = skip.locate(seg.pos(k));
+        let kind = skip.cell_kind_ahead(cell, index, ahead);
+        // Jumps over empty boxes that follow one another (a ray closing
+        // in on a surface) make one run, without a DDA: the ray leaves each
+        // box through its far faces and the next is found where it lands.
+        if let CellKind::EmptyWithin(b) = kind {
+            let mut end = seg
+                .first_index_at_or_after(b.exit(seg.origin, seg.inv_dir))
+                .max(k + 1);
+            while end < self.k1 {
+                let (cell, index) = skip.locate(seg.pos(end));
+                let CellKind::EmptyWithin(b) = skip.cell_kind_ahead(cell, index, ahead) else {
+                    break;
+                };
+                end = seg
+                    .first_index_at_or_after(b.exit(seg.origin, seg.inv_dir))
+                    .max(end + 1);
+            }
+            self.walk = None;
+            self.k = end;
+            return Some(SampleRun {
+                start: k,
+                end,
+                kind: RunKind::Empty,
+            });
+        }
         let walk = match self.walk {
             Some(w) if w.cell == cell.as_ivec3().to_array() => w,
             _ => MacrocellWalk::new(skip, &self.axes, cell, index),
         };
-        // The run ends at the first sample at or after the box's exit
+        // The run ends at the first sample at or after the cell's exit
         // (possibly one early, never late: see `first_index_at_or_after`),
         // and always advances.
-        let (kind, exit, walking) = match skip.cell_kind_ahead(
-            IVec3::from_array(walk.cell).as_uvec3(),
-            walk.index as usize,
-            ahead,
-        ) {
-            CellKind::Occupied => (RunKind::Cell(walk.index as usize), walk.exit(), true),
-            CellKind::EmptyAlone => (RunKind::Empty, walk.exit(), true),
-            CellKind::EmptyWithin(b) => (RunKind::Empty, b.exit(seg.origin, seg.inv_dir), false),
+        let (kind, exit) = match kind {
+            CellKind::Occupied => (RunKind::Cell(walk.index as usize), walk.exit()),
+            _ => (RunKind::Empty, walk.exit()),
         };
         let mut end = seg.first_index_at_or_after(exit).max(k + 1);
         if kind != RunKind::Empty {
@@ -121,20 +142,17 @@ impl Iterator for SkipRuns<'_> {
         }
         // The prediction for the next run: the first cell along the ray
         // that the next sample can lie in (a cell whose exit comes before
-        // it holds no sample). After a jump over an empty box there is
-        // none.
+        // it holds no sample).
         self.walk = None;
-        if walking {
-            let t_end = seg.t(end);
-            let mut w = walk;
-            for _ in 0..3 {
-                if !w.advance(skip, &self.axes) {
-                    break;
-                }
-                if w.exit() > t_end {
-                    self.walk = Some(w);
-                    break;
-                }
+        let t_end = seg.t(end);
+        let mut w = walk;
+        for _ in 0..3 {
+            if !w.advance(skip, &self.axes) {
+                break;
+            }
+            if w.exit() > t_end {
+                self.walk = Some(w);
+                break;
             }
         }
         self.k = end;
