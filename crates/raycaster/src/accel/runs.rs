@@ -275,27 +275,39 @@ mod tests {
     use crate::volume::Grid;
 
     /// The runs of samples `k0..k1` by [`SkipGrid::classify_ahead`] of each
-    /// run's first sample, without the DDA's prediction.
+    /// run's first sample, without the DDA's prediction; a jump over an
+    /// empty box larger than a macrocell right after another such jump
+    /// extends that one's run.
     fn classified_runs(skip: &SkipGrid, seg: &RaySegment, k0: u32, k1: u32) -> Vec<SampleRun> {
         let ahead = skip.ahead(seg.inv_dir);
         let (mut k, k1) = (k0.max(seg.first), k1.min(seg.count));
-        let mut runs = Vec::new();
+        let mut runs: Vec<SampleRun> = Vec::new();
+        let mut jumping = false;
         while k < k1 {
             let (bounds, kind) = match skip.classify_ahead(seg.pos(k), ahead) {
                 CellClass::Occupied { bounds, index, .. } => (bounds, RunKind::Cell(index)),
                 CellClass::Empty(bounds) => (bounds, RunKind::Empty),
             };
+            let (cell, index) = skip.locate(seg.pos(k));
+            let jump = matches!(
+                skip.cell_kind_ahead(cell, index, ahead),
+                CellKind::EmptyWithin(_)
+            );
             let mut end = seg
                 .first_index_at_or_after(bounds.exit(seg.origin, seg.inv_dir))
                 .max(k + 1);
             if kind != RunKind::Empty {
                 end = end.min(k1);
             }
-            runs.push(SampleRun {
-                start: k,
-                end,
-                kind,
-            });
+            match runs.last_mut() {
+                Some(last) if jumping && jump => last.end = end,
+                _ => runs.push(SampleRun {
+                    start: k,
+                    end,
+                    kind,
+                }),
+            }
+            jumping = jump;
             k = end;
         }
         runs
