@@ -192,7 +192,8 @@ pub struct SceneOptions {
 pub struct CacheReport {
     /// The cache the grid was read from.
     pub loaded: Option<PathBuf>,
-    /// The cache the grid was written to after building it.
+    /// The cache the grid was written to after building it (or after
+    /// completing the uniform flags of a cache made from ranges alone).
     pub saved: Option<PathBuf>,
     /// Caches ignored as damaged, or that could not be written: for the
     /// user, once per open.

@@ -39,12 +39,12 @@ pub struct SampleRun {
 /// The runs of samples `k0..k1` of a ray (see [`SkipRuns::new`]).
 ///
 /// Each run is the macrocell (or empty box) holding its first sample,
-/// found by [`SkipGrid::classify_ahead`]'s rules, and ends at the first sample at
-/// or after the ray leaves that box; empty boxes the ray jumps across one
-/// after another (closing in on a surface) make one run. A classification from scratch is a
-/// chain of dependent steps (the sample's position, its cell, the cell's
-/// box, the box's exit, the next sample) that the processor cannot overlap
-/// from one run to the next. So the runs also walk the macrocells with a
+/// found by [`SkipGrid::classify_ahead`]'s rules, and ends at the first
+/// sample at or after the ray leaves that box; empty boxes the ray jumps
+/// across one after another (closing in on a surface) make one run. A
+/// classification from scratch is a chain of dependent steps (the sample's
+/// position, its cell, the cell's box, the box's exit, the next sample)
+/// that the processor cannot overlap from one run to the next. So the runs also walk the macrocells with a
 /// 3D DDA ([`MacrocellWalk`]), which knows the next cell and where the ray
 /// leaves it from the last one, and only check that the cell of the run's
 /// first sample is the one the DDA predicted: the check is a branch that
