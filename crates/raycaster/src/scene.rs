@@ -82,33 +82,26 @@ impl Scene {
             CachePolicy::Off => None,
             CachePolicy::Auto => cache_key(path, &opened.info, open, &mut report),
         };
-        if let Some(key) = &key
-            && let Some(mut grid) =
-                find_cached_macrocells(path, key, shape, options.cache_dir.as_deref(), &mut report)
-        {
-            if !grid.shells_found {
-                // A cache written from ranges alone (a distributed run's
-                // first pass): its uniform flags are right but fewer, so
-                // shaded frames would march cells they could composite.
-                // Complete them once and keep them.
+        let cached = key.as_ref().and_then(|key| {
+            find_cached_macrocells(path, key, shape, options.cache_dir.as_deref(), &mut report)
+        });
+        // The grid, and whether the cache must be written: when there was
+        // none, or when it was written from ranges alone (a distributed
+        // run's first pass), whose uniform flags are right but fewer, so
+        // shaded frames would march cells they could composite: those are
+        // completed once and kept.
+        let (grid, save) = match cached {
+            Some(mut grid) if !grid.shells_found => {
                 grid.find_uniform_shells_any(&volume);
-                save_cached_macrocells(
-                    path,
-                    key,
-                    shape,
-                    &grid,
-                    options.cache_dir.as_deref(),
-                    &mut report,
-                );
+                (grid, true)
             }
-            return Ok(OpenedScene {
-                scene: Self::from_grid(volume, grid),
-                info: opened.info,
-                cache: report,
-            });
-        }
-        let grid = MacrocellGrid::build_any(&volume, cell, options.progress.as_ref());
-        if let Some(key) = &key {
+            Some(grid) => (grid, false),
+            None => (
+                MacrocellGrid::build_any(&volume, cell, options.progress.as_ref()),
+                true,
+            ),
+        };
+        if save && let Some(key) = &key {
             save_cached_macrocells(
                 path,
                 key,

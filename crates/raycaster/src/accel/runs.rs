@@ -104,18 +104,20 @@ impl Iterator for SkipRuns<'_> {
         // Jumps over empty boxes that follow one another (a ray closing
         // in on a surface) make one run, without a DDA: the ray leaves each
         // box through its far faces and the next is found where it lands.
-        if let CellKind::EmptyWithin(b) = kind {
-            let mut end = seg
-                .first_index_at_or_after(b.exit(seg.origin, seg.inv_dir))
-                .max(k + 1);
-            while end < self.k1 {
-                let (cell, index) = skip.locate(seg.pos(end));
-                let CellKind::EmptyWithin(b) = skip.cell_kind_ahead(cell, index, ahead) else {
-                    break;
-                };
+        if let CellKind::EmptyWithin(mut b) = kind {
+            let mut end = k;
+            loop {
                 end = seg
                     .first_index_at_or_after(b.exit(seg.origin, seg.inv_dir))
                     .max(end + 1);
+                if end >= self.k1 {
+                    break;
+                }
+                let (cell, index) = skip.locate(seg.pos(end));
+                match skip.cell_kind_ahead(cell, index, ahead) {
+                    CellKind::EmptyWithin(next) => b = next,
+                    _ => break,
+                }
             }
             self.walk = None;
             self.k = end;
