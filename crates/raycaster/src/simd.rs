@@ -7,7 +7,11 @@
 //! (the SSE2 every x86-64 has, or whatever the target is), and inside a
 //! `#[target_feature(enable = "avx2")]` function for [`Avx2`], whose token
 //! only [`Avx2::detect`] hands out. One binary so runs anywhere and uses
-//! 8-wide vectors where the CPU has them. The few operations the compiler
+//! 8-wide vectors where the CPU has them. A loop over 16 lanes (the exact
+//! iso mode's ray packets) says so with [`Kernel::WIDE`] and gets a third
+//! copy compiled for AVX-512 too, used where the CPU has it (16 lanes a
+//! register); the 8-lane loops stay on AVX2, which ran them faster. The
+//! few operations the compiler
 //! cannot produce from plain loops (a lane permutation, a gather, a mask of
 //! lanes) are the trait's methods, one intrinsic each.
 //!
@@ -22,6 +26,11 @@ pub const LANES: usize = 8;
 pub trait Kernel {
     /// What the loop returns.
     type Output;
+    /// Whether the loop works on 16 values at a time (the iso mode's ray
+    /// packets), so that it runs in the AVX-512 copy where the CPU has
+    /// AVX-512. Opt-in: the 8-lane loops of volume rendering ran slower
+    /// compiled for AVX-512 than for AVX2.
+    const WIDE: bool = false;
     /// Runs the loop; implementations are `#[inline(always)]`, so that the
     /// loop is compiled into each instruction set's copy of [`dispatch`].
     fn run<I: Isa>(self, isa: I) -> Self::Output;
@@ -33,10 +42,23 @@ pub trait Kernel {
 pub fn dispatch<K: Kernel>(kernel: K) -> K::Output {
     #[cfg(target_arch = "x86_64")]
     if let Some(isa) = Avx2::detect() {
+        if K::WIDE && isa.has_avx512() {
+            // SAFETY: the CPU has AVX-512 F/VL/BW/DQ (`has_avx512`).
+            return unsafe { run_avx512(kernel, isa) };
+        }
         // SAFETY: the CPU has AVX2 (the token exists).
         return unsafe { run_avx2(kernel, isa) };
     }
     kernel.run(Portable)
+}
+
+/// [`Kernel::run`] compiled with AVX-512 enabled as well, for a
+/// [`Kernel::WIDE`] loop: the same code and the same `Avx2` operations,
+/// with the compiler free to use 16-lane registers.
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "avx2,avx512f,avx512vl,avx512bw,avx512dq")]
+fn run_avx512<K: Kernel>(kernel: K, isa: Avx2) -> K::Output {
+    kernel.run(isa)
 }
 
 /// [`Kernel::run`] compiled with AVX2 enabled.
@@ -99,23 +121,48 @@ impl Avx2 {
     /// to compare the two).
     #[inline]
     pub fn detect() -> Option<Self> {
-        use std::sync::atomic::{AtomicU8, Ordering};
-        // 0: not decided yet, 1: portable, 2: AVX2.
-        static CHOICE: AtomicU8 = AtomicU8::new(0);
-        let choice = match CHOICE.load(Ordering::Relaxed) {
-            0 => {
-                let forced = std::env::var_os("RAYCASTER_SIMD").is_some_and(|v| v == "portable");
-                let c = if !forced && std::is_x86_feature_detected!("avx2") {
-                    2
-                } else {
-                    1
-                };
-                CHOICE.store(c, Ordering::Relaxed);
-                c
-            }
-            c => c,
-        };
-        (choice == 2).then_some(Avx2(()))
+        let choice = choice();
+        (choice >= 2).then_some(Avx2(()))
+    }
+
+    /// Whether this CPU also has AVX-512 (F, VL, BW, DQ) and the
+    /// environment variable `RAYCASTER_SIMD` is not `avx2` (which keeps
+    /// the AVX2 copies, to compare the two).
+    #[inline]
+    pub fn has_avx512(self) -> bool {
+        choice() == 3
+    }
+}
+
+/// The instruction set chosen for this process, decided once: 1 portable,
+/// 2 AVX2, 3 AVX2 and AVX-512.
+#[cfg(target_arch = "x86_64")]
+#[inline]
+fn choice() -> u8 {
+    use std::sync::atomic::{AtomicU8, Ordering};
+    // 0: not decided yet.
+    static CHOICE: AtomicU8 = AtomicU8::new(0);
+    match CHOICE.load(Ordering::Relaxed) {
+        0 => {
+            let forced = std::env::var_os("RAYCASTER_SIMD");
+            let c = if forced.as_ref().is_some_and(|v| v == "portable")
+                || !std::is_x86_feature_detected!("avx2")
+            {
+                1
+            } else if forced.as_ref().is_some_and(|v| v == "avx2")
+                || !(std::is_x86_feature_detected!("avx512f")
+                    && std::is_x86_feature_detected!("avx512vl")
+                    && std::is_x86_feature_detected!("avx512bw")
+                    && std::is_x86_feature_detected!("avx512dq"))
+            {
+                2
+            } else {
+                3
+            };
+            CHOICE.store(c, Ordering::Relaxed);
+            c
+        }
+        c => c,
     }
 }
 
@@ -218,5 +265,36 @@ mod tests {
             );
             assert_eq!(avx2.nonzero_mask(&v), 0b0100_1010);
         }
+    }
+
+    /// A wide kernel: lane-wise arithmetic over 16 lanes and a lane mask.
+    struct Wide<'a>(&'a [f32; 16]);
+
+    impl Kernel for Wide<'_> {
+        type Output = ([f32; 16], u32);
+        const WIDE: bool = true;
+
+        #[inline(always)]
+        fn run<I: Isa>(self, isa: I) -> Self::Output {
+            let x = self.0;
+            let y: [f32; 16] = std::array::from_fn(|l| (x[l] * 1.7 + 0.3) / (x[l] * x[l] + 1.0));
+            let big: [u32; 16] = std::array::from_fn(|l| (y[l] > 0.5) as u32);
+            let (lo, hi) = big.split_at(LANES);
+            let mask = isa.nonzero_mask(lo.try_into().unwrap())
+                | isa.nonzero_mask(hi.try_into().unwrap()) << LANES;
+            (y, mask)
+        }
+    }
+
+    /// A [`Kernel::WIDE`] loop gives the portable copy's bits in whichever
+    /// copy `dispatch` runs it (the AVX-512 one on a CPU that has it).
+    #[test]
+    fn wide_kernels_agree_with_portable() {
+        let x: [f32; 16] = std::array::from_fn(|l| l as f32 * 0.37 - 2.5);
+        let (y, mask) = dispatch(Wide(&x));
+        let (py, pmask) = Wide(&x).run(Portable);
+        assert_eq!(y.map(f32::to_bits), py.map(f32::to_bits));
+        assert_eq!(mask, pmask);
+        assert!(mask != 0 && mask != 0xffff, "{mask:#x}");
     }
 }

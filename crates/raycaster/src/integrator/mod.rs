@@ -222,7 +222,7 @@ pub trait Integrator: Copy + Default + Send + Sync + std::fmt::Debug + 'static {
     const PACKETS: bool = false;
 
     /// Integrates the whole rays `segs` of neighbouring pixels (at most a
-    /// block of 4×2), one into each of `rays`; returns the samples taken.
+    /// block of 4×4), one into each of `rays`; returns the samples taken.
     /// Each ray must come out as [`Integrator::integrate`] of its whole
     /// span would leave it, whichever rays it is handed with. This default
     /// integrates them one by one.

@@ -156,6 +156,7 @@ struct PixelBlock<'a, 'j, V: Volume> {
 
 impl<V: Volume> Kernel for PixelBlock<'_, '_, V> {
     type Output = Option<[PixelRay; BLOCK]>;
+    const WIDE: bool = true;
 
     #[inline(always)]
     fn run<I: Isa>(self, _isa: I) -> Self::Output {

@@ -305,7 +305,7 @@ impl Integrator for IsoState {
 /// Which of a packet's hits each of the first lights is hidden from:
 /// bit `lane` of entry `k` set when light `k`'s shadow ray from the hit in
 /// lane `lane` meets the surface.
-type ShadowMasks = [u8; CACHED_LIGHTS];
+type ShadowMasks = [u32; CACHED_LIGHTS];
 
 /// The opaque colour of the surface at `hit` (unit world normal `n`, `None`
 /// where there is none): the TF colour at the iso value, lit ([`lit`]) and

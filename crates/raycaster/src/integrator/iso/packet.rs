@@ -1,6 +1,6 @@
 //! Packets of neighbouring primary rays walked together, slice by slice
 //! (the seed thesis's coherent grid traversal, §3.3.3, cut down to the
-//! few rays of a 4×2 pixel block).
+//! 16 rays of a 4×4 pixel block).
 //!
 //! Neighbouring pixels' rays pass through nearly the same cells. Instead of
 //! a DDA per ray, the packet visits the grid in slices of cells across the
@@ -32,12 +32,15 @@ use crate::geometry::{max_to, min_to};
 use crate::simd::{self, Isa, Kernel};
 use crate::volume::Volume;
 
-/// Rays per packet: a block of 4×2 pixels.
-pub(crate) const PACKET: usize = 8;
+/// Rays per packet: a block of 4×4 pixels.
+pub(crate) const PACKET: usize = 16;
+
+// Lane masks are `u32`s, and `reduce` halves the lanes.
+const _: () = assert!(PACKET <= 32 && PACKET.is_power_of_two());
 
 /// Pixels per packet along a row and along a column.
 pub(crate) const PACKET_W: u32 = 4;
-pub(crate) const PACKET_H: u32 = 2;
+pub(crate) const PACKET_H: u32 = 4;
 
 /// How many slices a ray is walked in its packet before it goes on alone.
 /// Primary rays start at their proxy depth, a cell or so before the
@@ -91,7 +94,7 @@ pub(crate) fn search_packet<V: Volume>(
     // Rays are grouped by major axis and direction along it; a ray with a
     // zero direction component goes alone (its slab test would need the
     // scalar walk's care for ±0).
-    let mut left: u32 = (1 << rays.len()) - 1;
+    let mut left = ((1u64 << rays.len()) - 1) as u32;
     while left != 0 {
         let first = left.trailing_zeros() as usize;
         let Some(key) = axis_of(&rays[first].ray) else {
@@ -119,8 +122,9 @@ pub(crate) fn search_packet<V: Volume>(
     }
 }
 
-/// [`walk_group`] as a [`Kernel`]: its lane-wise loops compiled 8 wide
-/// where the CPU has AVX2.
+/// [`walk_group`] as a [`Kernel`]: its lane-wise loops over the 16 lanes
+/// compiled 16 wide where the CPU has AVX-512, else 8 wide with AVX2
+/// ([`Kernel::WIDE`]).
 struct Group<'a, V: Volume> {
     volume: &'a V,
     skip: &'a SkipGrid,
@@ -134,6 +138,7 @@ struct Group<'a, V: Volume> {
 
 impl<V: Volume> Kernel for Group<'_, V> {
     type Output = ();
+    const WIDE: bool = true;
 
     #[inline(always)]
     fn run<I: Isa>(self, isa: I) {
@@ -356,8 +361,8 @@ fn walk_group<V: Volume, I: Isa>(
                 hi_v[l] = max_to(va, vb);
             }
         }
-        let windowed = isa.nonzero_mask(&live);
-        let in_slice = isa.nonzero_mask(&inside);
+        let windowed = lane_mask(isa, &live);
+        let in_slice = lane_mask(isa, &inside);
         // The earliest crossing per lane in this slice, the entry of the
         // cell it lies in (ties go to the cell entered first), and that
         // cell.
@@ -425,7 +430,7 @@ fn walk_group<V: Volume, I: Isa>(
                         cubic[l] = CellCubic::new(&corners, p0, dir, iso);
                         open[l] = (cross && !cubic[l].stays_on(side[l], te[l] - tc[l])) as u32;
                     }
-                    let open = isa.nonzero_mask(&open);
+                    let open = lane_mask(isa, &open);
                     if open == 0 {
                         continue;
                     }
@@ -439,7 +444,7 @@ fn walk_group<V: Volume, I: Isa>(
                         across[l] = ((cubic[l].eval(0.0) >= 0.0) != side[l]) as u32;
                         len[l] = te[l] - tc[l];
                     }
-                    let across = isa.nonzero_mask(&across);
+                    let across = lane_mask(isa, &across);
                     for l in lanes_of(open) {
                         tol[l] = rays[l].ray.tol;
                     }
@@ -473,9 +478,9 @@ fn walk_group<V: Volume, I: Isa>(
             left[l] = (tb[l] >= lanes.t1[l] || ta[l] > tb[l]) as u32;
             expires[l] = (into[l] + 1 >= WINDOW) as u32;
         }
-        let found = windowed & isa.nonzero_mask(&found);
-        let left = windowed & !found & isa.nonzero_mask(&left);
-        let expires = windowed & !found & !left & isa.nonzero_mask(&expires);
+        let found = windowed & lane_mask(isa, &found);
+        let left = windowed & !found & lane_mask(isa, &left);
+        let expires = windowed & !found & !left & lane_mask(isa, &expires);
         for l in lanes_of(found) {
             out[l].hit = Some((best_t[l], best_cell[l]));
         }
@@ -511,9 +516,26 @@ fn lanes_of(mask: u32) -> impl Iterator<Item = usize> {
 
 /// The least (`f = min_to`) or greatest (`max_to`) of the lanes, as a tree.
 #[inline(always)]
-fn reduce(x: [f32; PACKET], f: fn(f32, f32) -> f32) -> f32 {
-    let x4: [f32; 4] = std::array::from_fn(|i| f(x[i], x[i + 4]));
-    f(f(x4[0], x4[2]), f(x4[1], x4[3]))
+fn reduce(mut x: [f32; PACKET], f: fn(f32, f32) -> f32) -> f32 {
+    let mut n = PACKET;
+    while n > 1 {
+        n /= 2;
+        for i in 0..n {
+            x[i] = f(x[i], x[i + n]);
+        }
+    }
+    x[0]
+}
+
+/// Bit `l` set when `v[l] != 0`, [`simd::LANES`] lanes at a time.
+#[inline(always)]
+fn lane_mask<I: Isa>(isa: I, v: &[u32; PACKET]) -> u32 {
+    let mut m = 0;
+    for (c, chunk) in v.chunks_exact(simd::LANES).enumerate() {
+        let chunk: &[u32; simd::LANES] = chunk.try_into().expect("chunks_exact");
+        m |= isa.nonzero_mask(chunk) << (c * simd::LANES);
+    }
+    m
 }
 
 #[cfg(test)]
@@ -604,15 +626,30 @@ mod tests {
             let skip = self.skip;
             let fine = skip.iso_cells().unwrap();
             let mut rng = fastrand::Rng::with_seed(12);
-            let (mut hits, mut handed_on) = (0, 0);
+            let (mut hits, mut handed_on, mut rounded, mut rays_seen) = (0, 0, 0, 0);
             for rays in random_packets(volume.grid(), &mut rng, 3000) {
                 let mut out = [PacketHit::default(); PACKET];
                 search_packet(volume, skip, fine, ISO, &rays, &mut out[..rays.len()]);
                 for (l, r) in rays.iter().enumerate() {
-                    // The scalar walk's hit, to the bit.
+                    // The scalar walk's hit, to the bit, in the same cell;
+                    // except, rarely, by the rounding of the cell's entry:
+                    // where the scalar walk starts a macrocell a hair
+                    // outside it (the start clamped into the macrocell),
+                    // it enters the next cell at an earlier plane than
+                    // the packet, whose entry is the cell's own.
                     let mut search = Search::new(volume, ISO, None);
                     search.walk(Some(skip), &r.ray, r.t0, r.t1);
-                    assert_eq!(out[l].hit, search.hit, "ray {r:?}");
+                    rays_seen += 1;
+                    if out[l].hit != search.hit {
+                        let (Some((a, ca)), Some((b, cb))) = (out[l].hit, search.hit) else {
+                            panic!("ray {r:?}: {:?} vs {:?}", out[l].hit, search.hit);
+                        };
+                        assert!(
+                            ca == cb && (a - b).abs() <= r.ray.tol,
+                            "ray {r:?}: {a} vs {b}"
+                        );
+                        rounded += 1;
+                    }
                     hits += search.hit.is_some() as u32;
                     // Rays whose search spans more slices than a window go
                     // on alone.
@@ -631,11 +668,13 @@ mod tests {
             // The rays hit often, and some walk past their packet's window.
             assert!(hits > 3000, "{hits}");
             assert!(handed_on > 0);
+            assert!(rounded * 1000 <= rays_seen, "{rounded} of {rays_seen}");
         }
     }
 
-    /// Every ray of a packet finds exactly the crossing the scalar walk
-    /// finds, and the same as when it is searched alone: what a ray finds
+    /// Every ray of a packet finds the crossing the scalar walk finds (to
+    /// the bit but for a rare rounding of a cell's entry, see `Check`),
+    /// and exactly the same as when it is searched alone: what a ray finds
     /// does not depend on the rays it is searched with, so every renderer
     /// (which cut the image into different blocks) gives the same image.
     #[test]
