@@ -46,8 +46,10 @@ pub(crate) const PACKET_H: u32 = 4;
 /// Primary rays start at their proxy depth, a cell or so before the
 /// surface: most hit within a few slices, and the rays that graze the
 /// silhouette and miss are better served by the scalar walk's empty-space
-/// skipping than by a packet stepping slice after slice.
-const WINDOW: i32 = 12;
+/// skipping than by a packet stepping slice after slice. With 16-ray
+/// packets on AVX-512 the bunny's turntable ran 3-5 % faster with 32
+/// slices than with 12 (20 and 64 were about as fast as 32, 8 slower).
+const WINDOW: i32 = 32;
 
 /// How far (cells) past the rays' extent in a slice the rectangle of cells
 /// reaches: far beyond the rounding of a position, so that a ray grazing
@@ -548,9 +550,10 @@ mod tests {
     /// A sphere's distance field with ripples (a surface that bends inside
     /// cells, so that rays cross it twice in some) over a floor that lies
     /// exactly on a plane of cell faces (where a crossing falls between
-    /// cells), and its two-level structure for iso value 6.
+    /// cells), and its two-level structure for iso value 6; long along z,
+    /// so that some rays walk past a packet's window of slices.
     fn rippled_sphere() -> (AnyVolume, SkipGrid) {
-        let grid = Grid::new(UVec3::new(23, 19, 26), Vec3::ONE);
+        let grid = Grid::new(UVec3::new(23, 19, 72), Vec3::ONE);
         let centre = Vec3::new(11.0, 10.0, 12.5);
         let volume = AnyVolume::from_fn(grid, |v| {
             let d = v.as_vec3() - centre;
