@@ -145,8 +145,9 @@ impl<V: Volume> FrameJob<'_, V> {
 /// Pixels in a block of [`FrameJob::pixel_block`].
 pub const BLOCK: usize = (PACKET_W * PACKET_H) as usize;
 
-/// [`FrameJob::pixel_block`] as a [`Kernel`]: its lane-wise loops compiled
-/// 8 wide where the CPU has AVX2.
+/// [`FrameJob::pixel_block`] as a [`Kernel`]: its lane-wise loops over the
+/// block's 16 rays compiled 16 wide where the CPU has AVX-512, else 8 wide
+/// with AVX2 ([`Kernel::WIDE`]).
 struct PixelBlock<'a, 'j, V: Volume> {
     job: &'a FrameJob<'j, V>,
     i0: u32,

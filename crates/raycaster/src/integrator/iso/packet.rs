@@ -47,7 +47,7 @@ pub(crate) const PACKET_H: u32 = 4;
 /// surface: most hit within a few slices, and the rays that graze the
 /// silhouette and miss are better served by the scalar walk's empty-space
 /// skipping than by a packet stepping slice after slice. With 16-ray
-/// packets on AVX-512 the bunny's turntable ran 3-5 % faster with 32
+/// packets on AVX-512 the bunny's turntable ran 3-6 % faster with 32
 /// slices than with 12 (20 and 64 were about as fast as 32, 8 slower).
 const WINDOW: i32 = 32;
 
