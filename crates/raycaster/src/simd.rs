@@ -36,18 +36,18 @@ pub trait Kernel {
     fn run<I: Isa>(self, isa: I) -> Self::Output;
 }
 
-/// Runs `kernel` in the AVX2 copy when the CPU has AVX2, else in the
-/// portable one: the one place a hot loop's instruction set is chosen.
+/// Runs `kernel` in the AVX2 copy when the CPU has AVX2 (a
+/// [`Kernel::WIDE`] one in the AVX-512 copy when it has that too), else in
+/// the portable one: the one place a hot loop's instruction set is chosen.
 #[inline]
 pub fn dispatch<K: Kernel>(kernel: K) -> K::Output {
     #[cfg(target_arch = "x86_64")]
-    if let Some(isa) = Avx2::detect() {
-        if K::WIDE && isa.has_avx512() {
-            // SAFETY: the CPU has AVX-512 F/VL/BW/DQ (`has_avx512`).
-            return unsafe { run_avx512(kernel, isa) };
-        }
-        // SAFETY: the CPU has AVX2 (the token exists).
-        return unsafe { run_avx2(kernel, isa) };
+    match choice() {
+        // SAFETY: the CPU has AVX2 and AVX-512 F/VL/BW/DQ (`choice`).
+        AVX512 if K::WIDE => return unsafe { run_avx512(kernel, Avx2(())) },
+        // SAFETY: the CPU has AVX2 (`choice`).
+        AVX2 | AVX512 => return unsafe { run_avx2(kernel, Avx2(())) },
+        _ => {}
     }
     kernel.run(Portable)
 }
@@ -121,21 +121,23 @@ impl Avx2 {
     /// to compare the two).
     #[inline]
     pub fn detect() -> Option<Self> {
-        let choice = choice();
-        (choice >= 2).then_some(Avx2(()))
-    }
-
-    /// Whether this CPU also has AVX-512 (F, VL, BW, DQ) and the
-    /// environment variable `RAYCASTER_SIMD` is not `avx2` (which keeps
-    /// the AVX2 copies, to compare the two).
-    #[inline]
-    pub fn has_avx512(self) -> bool {
-        choice() == 3
+        (choice() != PORTABLE).then_some(Avx2(()))
     }
 }
 
-/// The instruction set chosen for this process, decided once: 1 portable,
-/// 2 AVX2, 3 AVX2 and AVX-512.
+/// [`choice`]s: the instruction sets a process can choose.
+#[cfg(target_arch = "x86_64")]
+const PORTABLE: u8 = 1;
+#[cfg(target_arch = "x86_64")]
+const AVX2: u8 = 2;
+#[cfg(target_arch = "x86_64")]
+const AVX512: u8 = 3;
+
+/// The instruction set chosen for this process, decided once: AVX-512 (F,
+/// VL, BW and DQ, with AVX2) when the CPU has it and the environment
+/// variable `RAYCASTER_SIMD` is not `avx2`, else AVX2 when it has that and
+/// `RAYCASTER_SIMD` is not `portable` (either forces the narrower copies,
+/// to compare them), else portable.
 #[cfg(target_arch = "x86_64")]
 #[inline]
 fn choice() -> u8 {
@@ -148,16 +150,16 @@ fn choice() -> u8 {
             let c = if forced.as_ref().is_some_and(|v| v == "portable")
                 || !std::is_x86_feature_detected!("avx2")
             {
-                1
+                PORTABLE
             } else if forced.as_ref().is_some_and(|v| v == "avx2")
                 || !(std::is_x86_feature_detected!("avx512f")
                     && std::is_x86_feature_detected!("avx512vl")
                     && std::is_x86_feature_detected!("avx512bw")
                     && std::is_x86_feature_detected!("avx512dq"))
             {
-                2
+                AVX2
             } else {
-                3
+                AVX512
             };
             CHOICE.store(c, Ordering::Relaxed);
             c

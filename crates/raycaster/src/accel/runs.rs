@@ -134,11 +134,11 @@ impl Iterator for SkipRuns<'_> {
         // The run ends at the first sample at or after the cell's exit
         // (possibly one early, never late: see `first_index_at_or_after`),
         // and always advances.
-        let (kind, exit) = match kind {
-            CellKind::Occupied => (RunKind::Cell(walk.index as usize), walk.exit()),
-            _ => (RunKind::Empty, walk.exit()),
+        let kind = match kind {
+            CellKind::Occupied => RunKind::Cell(walk.index as usize),
+            _ => RunKind::Empty,
         };
-        let mut end = seg.first_index_at_or_after(exit).max(k + 1);
+        let mut end = seg.first_index_at_or_after(walk.exit()).max(k + 1);
         if kind != RunKind::Empty {
             end = end.min(self.k1);
         }
