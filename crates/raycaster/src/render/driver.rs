@@ -99,11 +99,11 @@ impl<V: Volume> FrameJob<'_, V> {
     /// PACKET_W)`), the same for every pixel, with the arithmetic of the
     /// rays' set-up (directions, box intersection, voxel-space segment:
     /// a dozen divisions and two square roots a ray) done for all the
-    /// block's rays at once in vector instructions. `None` where only the
-    /// pixel-by-pixel way applies: an orthographic camera, a clip region, a
-    /// direction component of 0, or a ray the proxy depths cull in a
-    /// rectangle not known to enter the box (`all_enter` false: the ray is
-    /// traced to the box to be counted). The block must lie inside the
+    /// block's rays at once in vector instructions, except that a ray the
+    /// proxy depths cull is `Culled(None)` (its segment not worked out:
+    /// the tile loop reads only whether it enters the box). `None` where
+    /// only the pixel-by-pixel way applies: an orthographic camera, a clip
+    /// region, a direction component of 0. The block must lie inside the
     /// image.
     #[inline]
     pub fn pixel_block(&self, i0: u32, j0: u32, all_enter: bool) -> Option<[PixelRay; BLOCK]> {
@@ -176,17 +176,11 @@ impl<V: Volume> Kernel for PixelBlock<'_, '_, V> {
             None => [f32::NEG_INFINITY; BLOCK],
         };
         let culled = start.map(|t| t == f32::INFINITY);
-        // A culled ray of a rectangle not known to enter the box is traced
-        // to it only to be counted: rare (the box's silhouette), and left
-        // to the pixel-by-pixel way.
-        if culled.contains(&true) {
-            if !all_enter {
-                return None;
-            }
-            // Most blocks away from the surface: nothing to set up.
-            if !culled.contains(&false) {
-                return Some([PixelRay::Culled(None); BLOCK]);
-            }
+        let searched = culled.contains(&false);
+        // Most blocks away from the surface, in a rectangle whose rays all
+        // enter the box: nothing to set up.
+        if all_enter && !searched {
+            return Some([PixelRay::Culled(None); BLOCK]);
         }
         let dir = plan.camera.perspective_dirs(&i, &j);
         if dir.iter().flatten().any(|&d| d == 0.0) {
@@ -194,6 +188,20 @@ impl<V: Volume> Kernel for PixelBlock<'_, '_, V> {
         }
         let origin = plan.camera.position();
         let (t_in, t_out) = grid.bounds().intersect_lanes(origin, &dir);
+        // A culled ray of a rectangle not known to enter the box is traced
+        // to the box only to be counted (the rectangles along the box's
+        // silhouette, and those inside its screen rectangle but off its
+        // outline).
+        let culled_lane = |l: usize| {
+            if all_enter || t_in[l] <= t_out[l] {
+                PixelRay::Culled(None)
+            } else {
+                PixelRay::Misses
+            }
+        };
+        if !searched {
+            return Some(std::array::from_fn(culled_lane));
+        }
         let jitter: [f32; BLOCK] = match plan.jitter {
             Some(seed) => std::array::from_fn(|l| jitter(i[l], j[l], seed)),
             None => [0.0; BLOCK],
@@ -201,7 +209,7 @@ impl<V: Volume> Kernel for PixelBlock<'_, '_, V> {
         let segs = RaySegment::lanes(grid, origin, &dir, (&t_in, &t_out), plan.step, &jitter);
         Some(std::array::from_fn(|l| {
             if culled[l] {
-                PixelRay::Culled(None)
+                culled_lane(l)
             } else if t_in[l] <= t_out[l] {
                 let mut seg = segs[l];
                 // `pixel_in`'s `max` with the proxy's start (none: −∞).
@@ -452,37 +460,57 @@ fn render_tile_packets<V: Volume, I: Integrator>(
 ) -> (Vec<u8>, u64) {
     const N: usize = BLOCK;
     let width = rect.x1 - rect.x0;
-    let mut rgb = vec![0u8; 3 * rect.area() as usize];
+    // Every pixel starts as the background: most rays of an iso frame
+    // miss the box or are culled.
+    let background = film.background_rgb();
+    let mut rgb = background.repeat(rect.area() as usize);
     let mut samples = 0;
     let mut counts = RayCounts::default();
+    // Whether the proxy depths cull every ray of a rectangle whose rays
+    // all enter the box: then they only count.
+    let culled = |r: &PixelRect| all_enter && job.plan.proxy.as_ref().is_some_and(|p| p.culls(r));
+    if culled(rect) {
+        counts.entered += rect.area();
+        film.add_counts(counts);
+        return (rgb, 0);
+    }
     let mut scratch = I::Scratch::default();
-    let background = film.background_rgb();
     let put = |rgb: &mut [u8], i: u32, j: u32, px: [u8; 3]| {
         let at = 3 * ((j - rect.y0) * width + (i - rect.x0)) as usize;
         rgb[at..at + 3].copy_from_slice(&px);
     };
+    let mut segs = [RaySegment::default(); N];
+    let mut pixels = [(0u32, 0u32); N];
+    let mut rays = [I::default(); N];
+    let mut colours = [Vec4::ZERO; N];
     for by in (rect.y0..rect.y1).step_by(PACKET_H as usize) {
         for bx in (rect.x0..rect.x1).step_by(PACKET_W as usize) {
-            let mut segs = [RaySegment::default(); N];
-            let mut pixels = [(0u32, 0u32); N];
-            let mut n = 0;
-            let block = if bx + PACKET_W <= rect.x1 && by + PACKET_H <= rect.y1 {
+            let whole = bx + PACKET_W <= rect.x1 && by + PACKET_H <= rect.y1;
+            let block_rect = PixelRect {
+                x0: bx,
+                y0: by,
+                x1: (bx + PACKET_W).min(rect.x1),
+                y1: (by + PACKET_H).min(rect.y1),
+            };
+            if culled(&block_rect) {
+                counts.entered += block_rect.area();
+                continue;
+            }
+            let block = if whole {
                 job.pixel_block(bx, by, all_enter)
             } else {
                 None
             };
-            for j in by..(by + PACKET_H).min(rect.y1) {
-                for i in bx..(bx + PACKET_W).min(rect.x1) {
+            let mut n = 0;
+            for j in block_rect.y0..block_rect.y1 {
+                for i in block_rect.x0..block_rect.x1 {
                     let ray = match &block {
                         Some(b) => b[((j - by) * PACKET_W + i - bx) as usize],
                         None => job.pixel_in(i, j, all_enter),
                     };
                     match ray {
-                        PixelRay::Misses => put(&mut rgb, i, j, background),
-                        PixelRay::Culled(_) => {
-                            counts.entered += 1;
-                            put(&mut rgb, i, j, background);
-                        }
+                        PixelRay::Misses => {}
+                        PixelRay::Culled(_) => counts.entered += 1,
                         PixelRay::Searched(seg) => {
                             segs[n] = seg;
                             pixels[n] = (i, j);
@@ -494,9 +522,8 @@ fn render_tile_packets<V: Volume, I: Integrator>(
             if n == 0 {
                 continue;
             }
-            let mut rays = [I::default(); N];
+            rays[..n].fill(I::default());
             samples += I::integrate_packet(&job.ctx, &mut rays[..n], &segs[..n]);
-            let mut colours = [Vec4::ZERO; N];
             I::resolve_packet(&rays[..n], &job.ctx, &mut scratch, &mut colours[..n]);
             for (&c, &(i, j)) in colours[..n].iter().zip(&pixels[..n]) {
                 counts.add(c);
@@ -530,6 +557,9 @@ mod tests {
         blocks: usize,
         searched: usize,
         culled: usize,
+        /// Rays missing the box in blocks with culled rays, not known to
+        /// enter the box (traced to it lane-wise).
+        culled_misses: usize,
         /// Rays resolved to some opacity.
         covered: usize,
     }
@@ -543,9 +573,17 @@ mod tests {
                 self.blocks += 1;
                 for (l, ray) in block.iter().enumerate() {
                     let (i, j) = (bx + l as u32 % PACKET_W, by + l as u32 / PACKET_W);
-                    let want = job.pixel_in(i, j, all_enter);
+                    // A block leaves a culled ray's segment out.
+                    let want = match job.pixel_in(i, j, all_enter) {
+                        PixelRay::Culled(_) => PixelRay::Culled(None),
+                        want => want,
+                    };
                     assert_eq!(bits(ray), bits(&want), "pixel {i},{j}");
                     self.searched += matches!(ray, PixelRay::Searched(_)) as usize;
+                    self.culled_misses += (!all_enter
+                        && matches!(ray, PixelRay::Misses)
+                        && block.iter().any(|r| matches!(r, PixelRay::Culled(_))))
+                        as usize;
                     self.culled += matches!(ray, PixelRay::Culled(_)) as usize;
                 }
             }
@@ -671,11 +709,12 @@ mod tests {
         }
         let c = checker.schedule();
         assert!(
-            c.blocks > 1000 && c.searched > 5000 && c.culled > 1000,
-            "{}/{}/{}",
+            c.blocks > 1000 && c.searched > 5000 && c.culled > 1000 && c.culled_misses > 100,
+            "{}/{}/{}/{}",
             c.blocks,
             c.searched,
-            c.culled
+            c.culled,
+            c.culled_misses
         );
         // Orthographic cameras keep to the pixel-by-pixel way.
         let mut camera = Camera::look_at(centre + Vec3::new(3.0, 40.0, 5.0), centre, 40, 40);

@@ -181,6 +181,32 @@ impl ProxyDepth {
         self.depth[(y * self.width + x) as usize]
     }
 
+    /// Whether no pixel ray of `r` meets a straddling cell: [`at`] is
+    /// `f32::INFINITY` for every pixel of `r`, read a block of the buffer
+    /// at a time.
+    ///
+    /// [`at`]: ProxyDepth::at
+    pub fn culls(&self, r: &PixelRect) -> bool {
+        let r = r.intersect(&self.rect);
+        if r.is_empty() {
+            return true;
+        }
+        let (x0, x1) = (
+            (r.x0 - self.rect.x0) / BLOCK,
+            (r.x1 - 1 - self.rect.x0) / BLOCK,
+        );
+        let (y0, y1) = (
+            (r.y0 - self.rect.y0) / BLOCK,
+            (r.y1 - 1 - self.rect.y0) / BLOCK,
+        );
+        (y0..=y1).all(|y| {
+            let row = (y * self.width) as usize;
+            self.depth[row + x0 as usize..=row + x1 as usize]
+                .iter()
+                .all(|&t| t == f32::INFINITY)
+        })
+    }
+
     /// How many boxes (runs of straddling cells) were drawn.
     pub fn boxes(&self) -> usize {
         self.boxes
@@ -449,6 +475,27 @@ mod tests {
             }
             assert!(culled > 20, "{projection:?}: {culled}");
             assert!(covered > 100, "{projection:?}: {covered}");
+            // `culls` says of a rectangle what `at` says of its pixels,
+            // for rectangles of every size and offset, partly outside
+            // the buffer's too.
+            let (mut yes, mut no) = (0, 0);
+            for (w, h) in [(1, 1), (4, 4), (3, 5), (16, 16), (7, 2)] {
+                for y0 in 0..40 - h {
+                    for x0 in 0..48 - w {
+                        let r = PixelRect {
+                            x0,
+                            y0,
+                            x1: x0 + w,
+                            y1: y0 + h,
+                        };
+                        let want = (y0..y0 + h)
+                            .all(|j| (x0..x0 + w).all(|i| proxy.at(i, j) == f32::INFINITY));
+                        assert_eq!(proxy.culls(&r), want, "{projection:?} {r:?}");
+                        if want { yes += 1 } else { no += 1 }
+                    }
+                }
+            }
+            assert!(yes > 100 && no > 100, "{yes}/{no}");
         }
     }
 
