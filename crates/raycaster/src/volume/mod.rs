@@ -93,13 +93,32 @@ pub trait Volume: Send + Sync {
 }
 
 /// [`Volume::gradient`] for a sequence of positions that often fall in
-/// the same cell (the hits of neighbouring pixels): the corner differences
-/// of the last cell are kept, so its 32-value stencil is loaded once while
-/// the positions stay in it. The same values as [`Volume::gradient`].
-#[derive(Debug, Clone, Copy, Default)]
+/// the same few cells (the hits of a block of neighbouring pixels): the
+/// corner differences of the last [`GRADIENT_CELLS`] cells are kept, so a
+/// cell's 32-value stencil is loaded once while the positions stay among
+/// them (a 4×4 block's hits lie in a handful of cells, visited row by
+/// row, so that one cell kept reloaded most of them). The same values as
+/// [`Volume::gradient`].
+#[derive(Debug, Clone, Copy)]
 pub struct GradientCache {
-    cell: Option<UVec3>,
-    gradients: CornerGradients,
+    /// Per slot its cell's lower corner (`UVec3::MAX`, no cell's: empty).
+    cells: [UVec3; GRADIENT_CELLS],
+    gradients: [CornerGradients; GRADIENT_CELLS],
+    /// The slot the next new cell takes (the oldest).
+    next: usize,
+}
+
+/// Cells a [`GradientCache`] keeps.
+pub const GRADIENT_CELLS: usize = 4;
+
+impl Default for GradientCache {
+    fn default() -> Self {
+        GradientCache {
+            cells: [UVec3::MAX; GRADIENT_CELLS],
+            gradients: [[Vec4::ZERO; 8]; GRADIENT_CELLS],
+            next: 0,
+        }
+    }
 }
 
 impl GradientCache {
@@ -108,11 +127,18 @@ impl GradientCache {
     #[inline(always)]
     pub fn gradient<V: Volume + ?Sized>(&mut self, volume: &V, p: Vec3) -> Vec3 {
         let at = volume.locate(p);
-        if self.cell != Some(at.cell) {
-            self.cell = Some(at.cell);
-            self.gradients = corner_gradients(&volume.corners(at.cell), &volume.wings(at.cell));
-        }
-        interpolate_gradient(&self.gradients, at.frac, 0.5 / volume.grid().spacing)
+        let slot = match self.cells.iter().position(|&c| c == at.cell) {
+            Some(slot) => slot,
+            None => {
+                let slot = self.next;
+                self.next = (slot + 1) % GRADIENT_CELLS;
+                self.cells[slot] = at.cell;
+                self.gradients[slot] =
+                    corner_gradients(&volume.corners(at.cell), &volume.wings(at.cell));
+                slot
+            }
+        };
+        interpolate_gradient(&self.gradients[slot], at.frac, 0.5 / volume.grid().spacing)
     }
 }
 
