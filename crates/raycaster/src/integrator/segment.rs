@@ -242,3 +242,46 @@ fn sample_count(t0: f32, t_out: f32, step: f32, last: f32) -> u32 {
     }
     last + 1
 }
+
+#[cfg(test)]
+mod tests {
+    use glam::{UVec3, Vec3};
+
+    use super::*;
+
+    /// The lane-wise set-up counts each lane's samples as `sample_count`
+    /// does, for box intervals and steps of every scale (where the
+    /// estimate's rounding is off by one either way, or more), empty
+    /// intervals and jitter included.
+    #[test]
+    fn lanes_count_samples_as_sample_count() {
+        let grid = Grid::new(UVec3::new(9, 7, 8), Vec3::new(0.5, 1.0, 2.0));
+        let mut rng = fastrand::Rng::with_seed(5);
+        let (mut checked, mut off) = (0, 0);
+        for _ in 0..20_000 {
+            let step = [1e-3, 0.07, 0.2, 0.5, 3.0][rng.usize(0..5)] * (0.5 + rng.f32());
+            let t_in: [f32; 16] = std::array::from_fn(|_| rng.f32() * 10f32.powi(rng.i32(-2..4)));
+            let t_out: [f32; 16] = std::array::from_fn(|l| {
+                match rng.u32(0..4) {
+                    // A whole number of steps, give or take the rounding.
+                    0 => t_in[l] + rng.u32(0..2000) as f32 * step,
+                    1 => t_in[l] - rng.f32(),
+                    _ => t_in[l] + rng.f32() * 10f32.powi(rng.i32(-3..3)),
+                }
+            });
+            let jitter: [f32; 16] = std::array::from_fn(|_| rng.f32());
+            let dir = [[0.6f32; 16], [0.0f32; 16], [0.8f32; 16]];
+            let segs = RaySegment::lanes(&grid, Vec3::ZERO, &dir, (&t_in, &t_out), step, &jitter);
+            for (l, seg) in segs.iter().enumerate() {
+                let t0 = t_in[l] + jitter[l] * step;
+                let last = last_estimate(t0, t_out[l], 1.0 / step);
+                let want = sample_count(t0, t_out[l], step, last);
+                assert_eq!(seg.count, want, "{t0} {} {step}", t_out[l]);
+                // Where the estimate itself was off.
+                off += (want != (last as u32 + 1) && t0 <= t_out[l]) as u32;
+                checked += 1;
+            }
+        }
+        assert!(checked == 320_000 && off > 100, "{off}");
+    }
+}
