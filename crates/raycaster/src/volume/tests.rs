@@ -312,3 +312,32 @@ fn x_fast_order_samples_like_z_fast() {
         }
     }
 }
+
+/// A [`GradientCache`] gives [`Volume::gradient`]'s bits for positions
+/// that come back to a few cells in any order (more cells than it keeps,
+/// so that slots are taken over), on a field whose gradient changes from
+/// cell to cell.
+#[test]
+fn the_gradient_cache_gives_the_volumes_gradients() {
+    let grid = Grid::new(UVec3::new(9, 8, 7), Vec3::new(1.0, 0.5, 2.0));
+    let vol = linear(grid, |v| {
+        let p = v.as_vec3();
+        (p.x * 0.7).sin() * 40.0 + p.y * p.z - (p.z * 1.3).cos() * 9.0
+    });
+    let vol = vol.view();
+    let mut rng = fastrand::Rng::with_seed(17);
+    let mut cache = GradientCache::default();
+    // A handful of cells, one more than the cache keeps, revisited.
+    let cells: Vec<Vec3> = (0..GRADIENT_CELLS + 1)
+        .map(|_| Vec3::new(rng.f32() * 7.0, rng.f32() * 6.0, rng.f32() * 5.0).floor())
+        .collect();
+    for _ in 0..2000 {
+        let p = if rng.u32(0..8) == 0 {
+            Vec3::new(rng.f32() * 8.0, rng.f32() * 7.0, rng.f32() * 6.0)
+        } else {
+            cells[rng.usize(0..cells.len())] + Vec3::new(rng.f32(), rng.f32(), rng.f32())
+        };
+        let want = vol.gradient(p);
+        assert_eq!(cache.gradient(&vol, p).to_array(), want.to_array(), "{p}");
+    }
+}
