@@ -175,13 +175,10 @@ impl<V: Volume> Kernel for PixelBlock<'_, '_, V> {
             Some(p) => std::array::from_fn(|l| p.at(i[l], j[l])),
             None => [f32::NEG_INFINITY; BLOCK],
         };
+        // (A block whose rays are all culled in a rectangle known to enter
+        // the box never comes here from the tile loop: it passes over such
+        // blocks by their proxy depths, `ProxyDepth::culls`.)
         let culled = start.map(|t| t == f32::INFINITY);
-        let searched = culled.contains(&false);
-        // Most blocks away from the surface, in a rectangle whose rays all
-        // enter the box: nothing to set up.
-        if all_enter && !searched {
-            return Some([PixelRay::Culled(None); BLOCK]);
-        }
         let dir = plan.camera.perspective_dirs(&i, &j);
         if dir.iter().flatten().any(|&d| d == 0.0) {
             return None;
@@ -199,7 +196,7 @@ impl<V: Volume> Kernel for PixelBlock<'_, '_, V> {
                 PixelRay::Misses
             }
         };
-        if !searched {
+        if !culled.contains(&false) {
             return Some(std::array::from_fn(culled_lane));
         }
         let jitter: [f32; BLOCK] = match plan.jitter {
