@@ -214,7 +214,7 @@ impl MetaballRenderer {
             balls: &g.balls,
             ..params
         });
-        let mut film = Film::new(camera.width, camera.height, options.background);
+        let film = Film::new(camera.width, camera.height, options.background);
         let tiles: Vec<(u32, u32)> = (0..lists.rows)
             .flat_map(|ty| (0..lists.cols).map(move |tx| (tx, ty)))
             .filter(|&(tx, ty)| !lists.candidates(tx, ty).is_empty())
@@ -227,24 +227,20 @@ impl MetaballRenderer {
             offset: SHADOW_OFFSET * r_min.min(r_max),
             film: &film,
         };
-        let results: Vec<(Vec<u8>, u64)> = match &self.pool {
-            None => tiles.iter().map(|&t| render_tile(&job, t)).collect(),
-            Some(pool) => pool.install(|| {
-                tiles
-                    .par_iter()
-                    .with_max_len(1)
-                    .map(|&t| render_tile(&job, t))
-                    .collect()
-            }),
+        // Each tile goes on the film from the thread that rendered it.
+        let tile = |&(tx, ty): &(u32, u32)| {
+            let (pixels, n) = render_tile(&job, (tx, ty));
+            film.put_tile(&lists.rect(tx, ty), &pixels);
+            n
         };
-        let mut met = 0;
-        let mut rays = 0;
-        for (&(tx, ty), (pixels, n)) in tiles.iter().zip(results) {
-            let rect = lists.rect(tx, ty);
-            rays += rect.area();
-            film.put_tile(&rect, &pixels);
-            met += n;
-        }
+        let met: u64 = match &self.pool {
+            None => tiles.iter().map(tile).sum(),
+            Some(pool) => pool.install(|| tiles.par_iter().with_max_len(1).map(tile).sum()),
+        };
+        let rays: u64 = tiles
+            .iter()
+            .map(|&(tx, ty)| lists.rect(tx, ty).area())
+            .sum();
         let counts = film.counts();
         let stats = MetaballStats {
             lists: lists_time,

@@ -400,8 +400,10 @@ fn render_frame<S: Schedule>(
     }))
 }
 
-/// The tile loop: integrates every pixel of `rect` whole with `I` and
-/// returns the tile's RGB bytes (row-major) and the samples taken.
+/// The tile loop: integrates every pixel of `rect` whole with `I`, puts
+/// the tile on `film` (not a tile the proxy depths show to be background
+/// only: the film holds the background already) and returns the samples
+/// taken.
 ///
 /// Never inlined: the object renderer calls it from the thread that runs
 /// the frame and from the threads it spawns, and inlined into both it
@@ -412,7 +414,7 @@ pub(crate) fn render_tile<V: Volume, I: Integrator>(
     job: &FrameJob<'_, V>,
     film: &Film,
     rect: &PixelRect,
-) -> (Vec<u8>, u64) {
+) -> u64 {
     let all_enter = job.plan.proxy.is_some() && job.all_enter(rect);
     if I::PACKETS {
         return render_tile_packets::<V, I>(job, film, rect, all_enter);
@@ -443,7 +445,8 @@ pub(crate) fn render_tile<V: Volume, I: Integrator>(
         }
     }
     film.add_counts(counts);
-    (rgb, samples)
+    film.put_tile(rect, &rgb);
+    samples
 }
 
 /// [`render_tile`] for an integrator that takes the rays of blocks of
@@ -454,23 +457,23 @@ fn render_tile_packets<V: Volume, I: Integrator>(
     film: &Film,
     rect: &PixelRect,
     all_enter: bool,
-) -> (Vec<u8>, u64) {
+) -> u64 {
     const N: usize = BLOCK;
     let width = rect.x1 - rect.x0;
-    // Every pixel starts as the background: most rays of an iso frame
-    // miss the box or are culled.
-    let background = film.background_rgb();
-    let mut rgb = background.repeat(rect.area() as usize);
     let mut samples = 0;
     let mut counts = RayCounts::default();
     // Whether the proxy depths cull every ray of a rectangle whose rays
     // all enter the box: then they only count.
     let culled = |r: &PixelRect| all_enter && job.plan.proxy.as_ref().is_some_and(|p| p.culls(r));
     if culled(rect) {
+        // Background only, which the film already holds.
         counts.entered += rect.area();
         film.add_counts(counts);
-        return (rgb, 0);
+        return 0;
     }
+    // Every pixel starts as the background: most rays of an iso frame
+    // miss the box or are culled.
+    let mut rgb = film.background_rgb().repeat(rect.area() as usize);
     let mut scratch = I::Scratch::default();
     let put = |rgb: &mut [u8], i: u32, j: u32, px: [u8; 3]| {
         let at = 3 * ((j - rect.y0) * width + (i - rect.x0)) as usize;
@@ -529,7 +532,8 @@ fn render_tile_packets<V: Volume, I: Integrator>(
         }
     }
     film.add_counts(counts);
-    (rgb, samples)
+    film.put_tile(rect, &rgb);
+    samples
 }
 
 #[cfg(test)]

@@ -3,6 +3,7 @@
 use std::sync::atomic::{AtomicU64, Ordering};
 
 use glam::{Vec3, Vec4};
+use parking_lot::Mutex;
 
 use crate::camera::PixelRect;
 
@@ -13,7 +14,9 @@ pub struct Film {
     width: u32,
     background: Vec3,
     background_rgb: [u8; 3],
-    rgb: Vec<u8>,
+    /// The pixels, written by the render threads tile by tile as each
+    /// finishes one (see [`Film::put_tile`]).
+    rgb: Mutex<Vec<u8>>,
     /// Rays that met the volume, and of those the ones that ended with
     /// some opacity, added tile by tile.
     counts: [AtomicU64; 2],
@@ -55,7 +58,7 @@ impl Film {
             width,
             background,
             background_rgb,
-            rgb,
+            rgb: Mutex::new(rgb),
             counts: Default::default(),
         }
     }
@@ -91,18 +94,24 @@ impl Film {
         to_bytes(c.truncate() + (1.0 - c.w) * self.background)
     }
 
-    /// Copies a tile's pixels (row-major RGB of `rect`) into place.
-    pub fn put_tile(&mut self, rect: &PixelRect, pixels: &[u8]) {
+    /// Copies a tile's pixels (row-major RGB of `rect`) into place. Called
+    /// by the thread that rendered the tile, as soon as it has: the tile's
+    /// pixels are still in its cache, and the film's pages, which a black
+    /// film leaves untouched until here, are first written (faulted in) by
+    /// all the render threads during the frame instead of by one thread
+    /// after it. The lock is held for one tile's copy.
+    pub fn put_tile(&self, rect: &PixelRect, pixels: &[u8]) {
         let w = 3 * (rect.x1 - rect.x0) as usize;
+        let mut rgb = self.rgb.lock();
         for (row, j) in (rect.y0..rect.y1).enumerate() {
             let o = 3 * (j as usize * self.width as usize + rect.x0 as usize);
-            self.rgb[o..o + w].copy_from_slice(&pixels[row * w..row * w + w]);
+            rgb[o..o + w].copy_from_slice(&pixels[row * w..row * w + w]);
         }
     }
 
     /// The finished image.
     pub fn into_rgb(self) -> Vec<u8> {
-        self.rgb
+        self.rgb.into_inner()
     }
 }
 

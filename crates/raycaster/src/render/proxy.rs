@@ -25,8 +25,11 @@
 //! are binned into bands of rows and the bands filled in parallel; the
 //! result does not depend on the order (a minimum per pixel). Both passes
 //! (the boxes' rectangles, the fill) run on threads started for them
-//! (`on_threads`), one piece of the work each, rather than on a rayon pool
-//! that is asleep after the frame's rendering.
+//! (`on_threads`), rather than on a rayon pool that is asleep after the
+//! frame's rendering; the threads take the work in pieces in turn (a few
+//! pieces of the boxes per thread, one band of rows at a time), because
+//! the boxes crowd into the bands the surface covers and equal shares of
+//! the bands left one thread with twice the other's fill.
 //!
 //! [`LightProxy`] draws the same cells as seen along a directional light, so
 //! that shadow rays, which are parallel, learn where they have passed the
@@ -123,9 +126,12 @@ impl ProxyDepth {
             };
             Some((blocks, nearest_t(frame, lo, hi)))
         };
+        // Pieces of the work (a few per thread, taken in turn: a thread
+        // that starts late takes fewer).
         let parts = rayon::current_num_threads().max(1);
-        let pieces: Vec<&[(UVec3, u32)]> = runs.chunks(runs.len().div_ceil(parts).max(1)).collect();
-        let rects: Vec<(PixelRect, f32)> = on_threads(pieces, |piece| {
+        let pieces: Vec<&[(UVec3, u32)]> =
+            runs.chunks(runs.len().div_ceil(4 * parts).max(1)).collect();
+        let rects: Vec<(PixelRect, f32)> = on_threads(parts, pieces, |piece| {
             piece.iter().filter_map(box_of).collect::<Vec<_>>()
         })
         .concat();
@@ -149,18 +155,12 @@ impl ProxyDepth {
                 }
             }
         };
+        // Band by band, taken in turn by the threads: the boxes crowd into
+        // the bands the surface covers, so equal shares of the bands are
+        // unequal shares of the work.
         let band_len = (BAND * w) as usize;
-        let bands_per_part = (h.div_ceil(BAND) as usize).div_ceil(parts).max(1);
-        let pieces: Vec<(usize, &mut [f32])> = depth
-            .chunks_mut(bands_per_part * band_len)
-            .enumerate()
-            .map(|(p, c)| (p * bands_per_part, c))
-            .collect();
-        on_threads(pieces, |(first, out)| {
-            for (i, band) in out.chunks_mut(band_len).enumerate() {
-                fill_band(first + i, band);
-            }
-        });
+        let pieces: Vec<(usize, &mut [f32])> = depth.chunks_mut(band_len).enumerate().collect();
+        on_threads(parts, pieces, |(b, band)| fill_band(b, band));
         ProxyDepth {
             rect,
             width: w,
@@ -213,17 +213,22 @@ impl ProxyDepth {
     }
 }
 
-/// Runs `f` on each of `pieces` on the calling thread and a scoped thread
-/// per other piece (fewer when one cannot be started: the threads take the
-/// pieces in turn), and returns the results in the pieces' order.
+/// Runs `f` on each of `pieces` on the calling thread and up to
+/// `threads − 1` scoped threads (fewer when there are fewer pieces, or one
+/// cannot be started), which take the pieces in turn, and returns the
+/// results in the pieces' order.
 ///
 /// The proxy's two passes are short (a millisecond or two a frame), and a
 /// rayon pool asked for them from outside, after idling through the
 /// frame's rendering, often left one worker to do all of it while the
 /// others had not woken (measured per thread in the object renderer's
 /// frames): threads started for the pass work from the start.
-fn on_threads<P: Send, T: Send>(pieces: Vec<P>, f: impl Fn(P) -> T + Sync) -> Vec<T> {
-    let helpers = pieces.len().saturating_sub(1);
+fn on_threads<P: Send, T: Send>(
+    threads: usize,
+    pieces: Vec<P>,
+    f: impl Fn(P) -> T + Sync,
+) -> Vec<T> {
+    let helpers = pieces.len().min(threads).saturating_sub(1);
     let queue = Mutex::new(pieces.into_iter().enumerate());
     // Each thread takes pieces until none is left (the lock held only to
     // take one) and returns what it made, by piece.
@@ -397,15 +402,15 @@ mod tests {
     }
 
     /// `on_threads` gives each piece's result in the pieces' order and
-    /// runs each piece once, for no pieces, one, and more than there are
-    /// cores.
+    /// runs each piece once, for no pieces, one, and more pieces than
+    /// threads.
     #[test]
     fn on_threads_runs_each_piece_once_and_keeps_their_order() {
         for n in [0usize, 1, 2, 3, 7] {
             let mut data: Vec<u32> = (0..100).collect();
             let pieces: Vec<&mut [u32]> = data.chunks_mut(100usize.div_ceil(n.max(1))).collect();
             let pieces: Vec<&mut [u32]> = pieces.into_iter().take(n).collect();
-            let sums = on_threads(pieces, |p| {
+            let sums = on_threads(n.min(3), pieces, |p| {
                 p.iter_mut().for_each(|v| *v += 1000);
                 p.iter().sum::<u32>()
             });

@@ -40,9 +40,7 @@ impl Schedule for InOrder {
             if job.cancel.is_cancelled() {
                 return None;
             }
-            let (pixels, n) = render_tile::<V, I>(job, film, &t);
-            film.put_tile(&t, &pixels);
-            samples += n;
+            samples += render_tile::<V, I>(job, film, &t);
         }
         Some(samples)
     }

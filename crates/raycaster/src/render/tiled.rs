@@ -58,21 +58,15 @@ impl Schedule for TilePool {
         film: &mut Film,
     ) -> Option<u64> {
         let tiles: Vec<PixelRect> = job.plan.rect.tiles(self.tile).collect();
-        let shared: &Film = film;
-        let results: Vec<Option<(Vec<u8>, u64)>> = self.pool.install(|| {
+        let film: &Film = film;
+        // Each tile goes on the film from the thread that rendered it; a
+        // tile is only missing when the frame was cancelled.
+        self.pool.install(|| {
             tiles
                 .par_iter()
                 .with_max_len(1)
-                .map(|t| (!job.cancel.is_cancelled()).then(|| render_tile::<V, I>(job, shared, t)))
-                .collect()
-        });
-        let mut samples = 0;
-        for (t, result) in tiles.iter().zip(results) {
-            // A tile is only missing when the frame was cancelled.
-            let (pixels, n) = result?;
-            film.put_tile(t, &pixels);
-            samples += n;
-        }
-        Some(samples)
+                .map(|t| (!job.cancel.is_cancelled()).then(|| render_tile::<V, I>(job, film, t)))
+                .sum()
+        })
     }
 }

@@ -325,12 +325,7 @@ impl Schedule for Bricks {
         );
         let threads = (self.config.render_threads, self.config.composite_threads);
         let whole_rays = !I::SPLITS_RAYS && set.count == UVec3::ONE;
-        let (tiles, samples) =
-            tasks::run_frame::<V, I>(job, film, &work, threads, whole_rays, self.config.order)?;
-        for (t, pixels) in tiles {
-            film.put_tile(&work.tiles[t as usize], &pixels);
-        }
-        Some(samples)
+        tasks::run_frame::<V, I>(job, film, &work, threads, whole_rays, self.config.order)
     }
 }
 

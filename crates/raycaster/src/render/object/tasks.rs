@@ -47,13 +47,9 @@ struct Task<I> {
     buf: TileBuf<I>,
 }
 
-/// A finished tile: its index and RGB bytes, row-major.
-pub(super) type DoneTile = (u32, Vec<u8>);
-
 /// What one thread returns.
 #[derive(Debug, Default)]
 struct WorkerOut {
-    tiles: Vec<DoneTile>,
     samples: u64,
 }
 
@@ -139,19 +135,25 @@ impl<V: Volume, I: Integrator> Shared<'_, V, I> {
     }
 
     /// After a task: the tile's next task, or `None` when the tile is
-    /// finished (then resolved into `out`).
-    fn composite(&self, task: Task<I>, out: &mut Vec<DoneTile>) -> Option<Task<I>> {
+    /// finished (then resolved into the film).
+    fn composite(&self, task: Task<I>) -> Option<Task<I>> {
         let len = self.work.queue_of(task.tile).len() as u32;
         if task.next < len && task.buf.live > 0 {
             return Some(task);
         }
-        self.finish(task.tile, self.resolve(task.tile, &task.buf), out);
+        self.finish(task.tile, &self.resolve(task.tile, &task.buf));
         None
     }
 
-    /// Hands in tile `tile`'s RGB bytes; ends the frame after the last.
-    fn finish(&self, tile: u32, rgb: Vec<u8>, out: &mut Vec<DoneTile>) {
-        out.push((tile, rgb));
+    /// Puts tile `tile`'s RGB bytes on the film; ends the frame after the
+    /// last.
+    fn finish(&self, tile: u32, rgb: &[u8]) {
+        self.film.put_tile(&self.work.tiles[tile as usize], rgb);
+        self.tile_done();
+    }
+
+    /// Counts a tile on the film; ends the frame after the last.
+    fn tile_done(&self) {
         if self.remaining.fetch_sub(1, Ordering::AcqRel) == 1 {
             self.stop();
         }
@@ -197,9 +199,8 @@ impl<V: Volume, I: Integrator> Shared<'_, V, I> {
                 // give, without keeping a tile's segments and states in
                 // buffers between passes over it.
                 let rect = &self.work.tiles[task.tile as usize];
-                let (rgb, samples) = render_tile::<V, I>(self.job, self.film, rect);
-                out.samples += samples;
-                self.finish(task.tile, rgb, &mut out.tiles);
+                out.samples += render_tile::<V, I>(self.job, self.film, rect);
+                self.tile_done();
                 return;
             }
             self.render_task(&mut task, &mut out.samples);
@@ -208,7 +209,7 @@ impl<V: Volume, I: Integrator> Shared<'_, V, I> {
                 return;
             }
             let keep = self.order == TaskOrder::TileFirst;
-            while let Some(mut next) = self.composite(task, &mut out.tiles) {
+            while let Some(mut next) = self.composite(task) {
                 if keep && !self.stopped() {
                     self.render_task(&mut next, &mut out.samples);
                     task = next;
@@ -223,8 +224,8 @@ impl<V: Volume, I: Integrator> Shared<'_, V, I> {
 
     /// A compositing thread: takes finished tasks until the frame ends.
     fn composite_loop(&self) -> WorkerOut {
-        self.worker_loop(&self.done.1, |task, out| {
-            if let Some(next) = self.composite(task, &mut out.tiles) {
+        self.worker_loop(&self.done.1, |task, _| {
+            if let Some(next) = self.composite(task) {
                 let _ = self.tasks.0.send(next);
             }
         })
@@ -269,8 +270,9 @@ impl<V: Volume, I: Integrator> Drop for AbortOnPanic<'_, '_, V, I> {
 /// Runs the frame's threads over `work`: `render_threads` render threads
 /// (the calling thread is one of them) and `composite_threads` compositing
 /// threads. `whole_rays`: the work is one brick spanning the volume, for
-/// an integrator that does not split rays. Returns the finished tiles and
-/// the samples taken, `None` when the frame was cancelled.
+/// an integrator that does not split rays. The threads put the tiles on
+/// `film` as they finish them. Returns the samples taken, `None` when the
+/// frame was cancelled.
 pub(super) fn run_frame<V: Volume, I: Integrator>(
     job: &FrameJob<'_, V>,
     film: &Film,
@@ -278,7 +280,7 @@ pub(super) fn run_frame<V: Volume, I: Integrator>(
     threads: (usize, usize),
     whole_rays: bool,
     order: TaskOrder,
-) -> Option<(Vec<DoneTile>, u64)> {
+) -> Option<u64> {
     let (render_threads, composite_threads) = threads;
     let (stop_tx, stop_rx) = crossbeam_channel::bounded(0);
     let shared = Shared::<V, I> {
@@ -295,21 +297,18 @@ pub(super) fn run_frame<V: Volume, I: Integrator>(
         stop_tx: Mutex::new(Some(stop_tx)),
         stop_rx,
     };
-    // Tiles with nothing queued are background; the others start with
-    // the most work first, so the longest chains of bricks do not trail.
-    let mut out = WorkerOut::default();
+    // Tiles with nothing queued are background, which the film already
+    // holds; the others start with the most work first, so the longest
+    // chains of bricks do not trail.
     let mut started: Vec<(u64, u32)> = Vec::new();
     for (t, rect) in work.tiles.iter().enumerate() {
         let n = work.queue_of(t as u32).len() as u64;
-        if n == 0 {
-            out.tiles
-                .push((t as u32, shared.resolve(t as u32, &TileBuf::<I>::default())));
-        } else {
+        if n > 0 {
             started.push((n * rect.area(), t as u32));
         }
     }
     if started.is_empty() {
-        return Some((out.tiles, 0));
+        return Some(0);
     }
     started.sort_unstable_by(|a, b| b.cmp(a));
     shared.remaining.store(started.len(), Ordering::Relaxed);
@@ -340,6 +339,7 @@ pub(super) fn run_frame<V: Volume, I: Integrator>(
             (1..render_threads).map_while(|i| spawn(format!("raycaster-object-{i}"), true)),
         );
         let mine = shared.render_loop();
+        let t_j = std::time::Instant::now();
         let mut outs = vec![mine];
         for h in handles {
             match h.join() {
@@ -347,15 +347,13 @@ pub(super) fn run_frame<V: Volume, I: Integrator>(
                 Err(panic) => std::panic::resume_unwind(panic),
             }
         }
+        if std::env::var("PROXYT").is_ok() {
+            eprintln!("  object join {:?}", t_j.elapsed());
+        }
         outs
     });
     if shared.aborted.load(Ordering::Relaxed) || job.cancel.is_cancelled() {
         return None;
     }
-    let mut samples = 0;
-    for o in outs {
-        samples += o.samples;
-        out.tiles.extend(o.tiles);
-    }
-    Some((out.tiles, samples))
+    Some(outs.iter().map(|o| o.samples).sum())
 }
