@@ -339,16 +339,12 @@ pub(super) fn run_frame<V: Volume, I: Integrator>(
             (1..render_threads).map_while(|i| spawn(format!("raycaster-object-{i}"), true)),
         );
         let mine = shared.render_loop();
-        let t_j = std::time::Instant::now();
         let mut outs = vec![mine];
         for h in handles {
             match h.join() {
                 Ok(o) => outs.push(o),
                 Err(panic) => std::panic::resume_unwind(panic),
             }
-        }
-        if std::env::var("PROXYT").is_ok() {
-            eprintln!("  object join {:?}", t_j.elapsed());
         }
         outs
     });
