@@ -244,12 +244,9 @@ pub trait Schedule: Send {
     fn threads(&self) -> usize;
 
     /// Integrates the rays of `job.plan.rect` with integrator `I` onto
-    /// `film`; returns the samples taken, or `None` when `job.cancel` fired.
-    fn run<V: Volume, I: Integrator>(
-        &mut self,
-        job: &FrameJob<'_, V>,
-        film: &mut Film,
-    ) -> Option<u64>;
+    /// `film` (each tile put on it by the thread that rendered it);
+    /// returns the samples taken, or `None` when `job.cancel` fired.
+    fn run<V: Volume, I: Integrator>(&mut self, job: &FrameJob<'_, V>, film: &Film) -> Option<u64>;
 }
 
 /// A renderer made of a schedule (which rays are integrated on which
@@ -327,14 +324,14 @@ fn render_frame<S: Schedule>(
     let FrameInputs { scene, options, .. } = inputs;
     let mut plan = FramePlan::new(cache, scene, inputs.camera, inputs.tf, options)?;
     plan.draw_proxy(cache, scene, options);
-    let mut film = Film::new(plan.width, plan.height, options.background);
+    let film = Film::new(plan.width, plan.height, options.background);
 
     struct WithVolume<'a, S> {
         schedule: &'a mut S,
         plan: &'a FramePlan,
         inputs: FrameInputs<'a>,
         cancel: Cancel<'a>,
-        film: &'a mut Film,
+        film: &'a Film,
     }
     impl<S: Schedule> VolumeVisitor for WithVolume<'_, S> {
         type Output = Option<u64>;
@@ -363,7 +360,7 @@ fn render_frame<S: Schedule>(
     struct WithIntegrator<'a, 'j, S, V: Volume> {
         schedule: &'a mut S,
         job: &'a FrameJob<'j, V>,
-        film: &'a mut Film,
+        film: &'a Film,
     }
     impl<S: Schedule, V: Volume> IntegratorVisitor for WithIntegrator<'_, '_, S, V> {
         type Output = Option<u64>;
@@ -377,7 +374,7 @@ fn render_frame<S: Schedule>(
         plan: &plan,
         inputs,
         cancel,
-        film: &mut film,
+        film: &film,
     });
     let Some(samples) = samples else {
         return Ok(None);
@@ -631,7 +628,7 @@ mod tests {
         fn run<V: Volume, I: Integrator>(
             &mut self,
             job: &FrameJob<'_, V>,
-            _film: &mut Film,
+            _film: &Film,
         ) -> Option<u64> {
             let rect = job.plan.rect;
             let mut scratch = I::Scratch::default();

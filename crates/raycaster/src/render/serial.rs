@@ -30,11 +30,7 @@ impl Schedule for InOrder {
         1
     }
 
-    fn run<V: Volume, I: Integrator>(
-        &mut self,
-        job: &FrameJob<'_, V>,
-        film: &mut Film,
-    ) -> Option<u64> {
+    fn run<V: Volume, I: Integrator>(&mut self, job: &FrameJob<'_, V>, film: &Film) -> Option<u64> {
         let mut samples = 0;
         for t in job.plan.rect.tiles(SERIAL_TILE) {
             if job.cancel.is_cancelled() {

@@ -52,13 +52,8 @@ impl Schedule for TilePool {
         self.threads
     }
 
-    fn run<V: Volume, I: Integrator>(
-        &mut self,
-        job: &FrameJob<'_, V>,
-        film: &mut Film,
-    ) -> Option<u64> {
+    fn run<V: Volume, I: Integrator>(&mut self, job: &FrameJob<'_, V>, film: &Film) -> Option<u64> {
         let tiles: Vec<PixelRect> = job.plan.rect.tiles(self.tile).collect();
-        let film: &Film = film;
         // Each tile goes on the film from the thread that rendered it; a
         // tile is only missing when the frame was cancelled.
         self.pool.install(|| {

@@ -305,11 +305,7 @@ impl Schedule for Bricks {
         self.config.render_threads + self.config.composite_threads
     }
 
-    fn run<V: Volume, I: Integrator>(
-        &mut self,
-        job: &FrameJob<'_, V>,
-        film: &mut Film,
-    ) -> Option<u64> {
+    fn run<V: Volume, I: Integrator>(&mut self, job: &FrameJob<'_, V>, film: &Film) -> Option<u64> {
         let set = self.visible::<I>(
             job.scene,
             &job.plan.prepared,
