@@ -227,15 +227,15 @@ impl MetaballRenderer {
             offset: SHADOW_OFFSET * r_min.min(r_max),
             film: &film,
         };
-        // Each tile goes on the film from the thread that rendered it.
-        let tile = |&(tx, ty): &(u32, u32)| {
-            let (pixels, n) = render_tile(&job, (tx, ty));
-            film.put_tile(&lists.rect(tx, ty), &pixels);
-            n
-        };
         let met: u64 = match &self.pool {
-            None => tiles.iter().map(tile).sum(),
-            Some(pool) => pool.install(|| tiles.par_iter().with_max_len(1).map(tile).sum()),
+            None => tiles.iter().map(|&t| render_tile(&job, t)).sum(),
+            Some(pool) => pool.install(|| {
+                tiles
+                    .par_iter()
+                    .with_max_len(1)
+                    .map(|&t| render_tile(&job, t))
+                    .sum()
+            }),
         };
         let rays: u64 = tiles
             .iter()
@@ -293,11 +293,12 @@ struct TileJob<'a> {
     film: &'a Film,
 }
 
-/// The tile loop: every pixel of tile `(tx, ty)`; returns the tile's RGB
-/// bytes (row-major) and the ray-ball intersections taken. In
+/// The tile loop: every pixel of tile `(tx, ty)`, put on the film (by the
+/// thread that rendered it, as the volume renderers' tile loop does);
+/// returns the ray-ball intersections taken. In
 /// [`FrameStats`], `rays_in_volume` counts the rays that met a ball,
 /// `covered` those that hit the surface and `samples` the intersections.
-fn render_tile(job: &TileJob<'_>, (tx, ty): (u32, u32)) -> (Vec<u8>, u64) {
+fn render_tile(job: &TileJob<'_>, (tx, ty): (u32, u32)) -> u64 {
     let rect: PixelRect = job.lists.rect(tx, ty);
     let cands = job.lists.candidates(tx, ty);
     let mut scratch = Scratch::default();
@@ -348,5 +349,6 @@ fn render_tile(job: &TileJob<'_>, (tx, ty): (u32, u32)) -> (Vec<u8>, u64) {
         }
     }
     job.film.add_counts(counts);
-    (rgb, met)
+    job.film.put_tile(&rect, &rgb);
+    met
 }

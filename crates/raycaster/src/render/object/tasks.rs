@@ -47,12 +47,6 @@ struct Task<I> {
     buf: TileBuf<I>,
 }
 
-/// What one thread returns.
-#[derive(Debug, Default)]
-struct WorkerOut {
-    samples: u64,
-}
-
 /// State shared by the threads of one frame.
 struct Shared<'a, V: Volume, I> {
     job: &'a FrameJob<'a, V>,
@@ -164,9 +158,6 @@ impl<V: Volume, I: Integrator> Shared<'_, V, I> {
         let t = self.work.tiles[tile as usize];
         let bg = self.film.background_rgb();
         let area = t.area() as usize;
-        if buf.segs.is_empty() {
-            return bg.repeat(area);
-        }
         let mut rgb = Vec::with_capacity(3 * area);
         let mut counts = RayCounts::default();
         let mut scratch = I::Scratch::default();
@@ -192,18 +183,18 @@ impl<V: Volume, I: Integrator> Shared<'_, V, I> {
     /// both callers it became two copies of the integrator's loop that the
     /// compiler optimised differently.
     #[inline(never)]
-    fn render_loop(&self) -> WorkerOut {
-        self.worker_loop(&self.tasks.1, |mut task, out| {
+    fn render_loop(&self) -> u64 {
+        self.worker_loop(&self.tasks.1, |mut task, samples| {
             if self.whole_rays {
                 // The same rays, states and resolution as the tasks below
                 // give, without keeping a tile's segments and states in
                 // buffers between passes over it.
                 let rect = &self.work.tiles[task.tile as usize];
-                out.samples += render_tile::<V, I>(self.job, self.film, rect);
+                *samples += render_tile::<V, I>(self.job, self.film, rect);
                 self.tile_done();
                 return;
             }
-            self.render_task(&mut task, &mut out.samples);
+            self.render_task(&mut task, samples);
             if !self.inline.load(Ordering::Relaxed) {
                 let _ = self.done.0.send(task);
                 return;
@@ -211,7 +202,7 @@ impl<V: Volume, I: Integrator> Shared<'_, V, I> {
             let keep = self.order == TaskOrder::TileFirst;
             while let Some(mut next) = self.composite(task) {
                 if keep && !self.stopped() {
-                    self.render_task(&mut next, &mut out.samples);
+                    self.render_task(&mut next, samples);
                     task = next;
                     continue;
                 }
@@ -223,7 +214,7 @@ impl<V: Volume, I: Integrator> Shared<'_, V, I> {
     }
 
     /// A compositing thread: takes finished tasks until the frame ends.
-    fn composite_loop(&self) -> WorkerOut {
+    fn composite_loop(&self) -> u64 {
         self.worker_loop(&self.done.1, |task, _| {
             if let Some(next) = self.composite(task) {
                 let _ = self.tasks.0.send(next);
@@ -232,14 +223,15 @@ impl<V: Volume, I: Integrator> Shared<'_, V, I> {
     }
 
     /// Takes tasks from `queue` and hands them to `work` until the frame
-    /// ends (or stops early, which ends it for every thread).
+    /// ends (or stops early, which ends it for every thread); returns the
+    /// samples `work` counted.
     fn worker_loop(
         &self,
         queue: &Receiver<Task<I>>,
-        mut work: impl FnMut(Task<I>, &mut WorkerOut),
-    ) -> WorkerOut {
+        mut work: impl FnMut(Task<I>, &mut u64),
+    ) -> u64 {
         let _guard = AbortOnPanic(self);
-        let mut out = WorkerOut::default();
+        let mut samples = 0;
         loop {
             let task = crossbeam_channel::select! {
                 recv(queue) -> t => t,
@@ -250,9 +242,9 @@ impl<V: Volume, I: Integrator> Shared<'_, V, I> {
                 self.abort();
                 break;
             }
-            work(task, &mut out);
+            work(task, &mut samples);
         }
-        out
+        samples
     }
 }
 
@@ -351,5 +343,5 @@ pub(super) fn run_frame<V: Volume, I: Integrator>(
     if shared.aborted.load(Ordering::Relaxed) || job.cancel.is_cancelled() {
         return None;
     }
-    Some(outs.iter().map(|o| o.samples).sum())
+    Some(outs.iter().sum())
 }
