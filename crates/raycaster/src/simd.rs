@@ -235,6 +235,20 @@ fn gather_avx2(table: &[f32], index: &[u32; LANES]) -> [f32; LANES] {
     unsafe { std::mem::transmute(_mm256_i32gather_ps::<4>(table.as_ptr(), index)) }
 }
 
+/// The lanes set in `mask`, lowest first: one step per set bit (a loop
+/// over all lanes testing each bit mispredicts the test).
+#[inline(always)]
+pub(crate) fn lanes_of(mask: u32) -> impl Iterator<Item = usize> {
+    let mut m = mask;
+    std::iter::from_fn(move || {
+        (m != 0).then(|| {
+            let l = m.trailing_zeros() as usize;
+            m &= m - 1;
+            l
+        })
+    })
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;

@@ -14,6 +14,7 @@
 
 mod avg;
 mod batch;
+mod block;
 mod dvr;
 mod fragment;
 mod iso;
@@ -23,10 +24,10 @@ mod segment;
 mod shading;
 
 pub use avg::AvgState;
+pub use block::{BLOCK, PACKET_H, PACKET_W, RayBlock};
 pub use dvr::DvrState;
 pub use fragment::Fragment;
 pub use iso::{CellCubic, IsoHit, IsoNormals, IsoState, ShadingCache};
-pub(crate) use iso::{PACKET_H, PACKET_W};
 
 pub use mip::{Extremum, Max, Min, MinipState, MipState, ProjectionState};
 pub use none::NoSamples;
@@ -221,18 +222,18 @@ pub trait Integrator: Copy + Default + Send + Sync + std::fmt::Debug + 'static {
     /// neighbouring pixels together ([`Integrator::integrate_packet`]).
     const PACKETS: bool = false;
 
-    /// Integrates the whole rays `segs` of neighbouring pixels (at most a
-    /// block of 4×4), one into each of `rays`; returns the samples taken.
-    /// Each ray must come out as [`Integrator::integrate`] of its whole
-    /// span would leave it, whichever rays it is handed with. This default
-    /// integrates them one by one.
+    /// Integrates the whole rays of the lanes `block.searched` of a block
+    /// of neighbouring pixels, lane `l`'s into `rays[l]`; returns the
+    /// samples taken. Each ray must come out as [`Integrator::integrate`]
+    /// of its whole span would leave it, whichever rays it is handed with.
+    /// This default integrates them one by one.
     #[inline(always)]
     fn integrate_packet<V: Volume>(
         ctx: &FrameContext<'_, V>,
-        rays: &mut [Self],
-        segs: &[RaySegment],
+        rays: &mut [Self; BLOCK],
+        block: &RayBlock,
     ) -> u64 {
-        integrate_each(ctx, rays, segs)
+        integrate_each(ctx, rays, block)
     }
 
     /// True when nothing more can change this ray (ERT, a hit).
@@ -260,19 +261,20 @@ pub trait Integrator: Copy + Default + Send + Sync + std::fmt::Debug + 'static {
         self.resolve(ctx)
     }
 
-    /// [`Integrator::resolve_in`] for the rays of one packet (as
-    /// [`Integrator::integrate_packet`] left them), into `out`: the same
-    /// colours, found together where the rays can share work. This
-    /// default resolves them one by one.
+    /// [`Integrator::resolve_in`] for the rays of the lanes `lanes` of one
+    /// block (as [`Integrator::integrate_packet`] left them), lane `l`'s
+    /// into `out[l]`: the same colours, found together where the rays can
+    /// share work. This default resolves them one by one.
     #[inline(always)]
     fn resolve_packet<V: Volume>(
-        rays: &[Self],
+        rays: &[Self; BLOCK],
+        lanes: u32,
         ctx: &FrameContext<'_, V>,
         scratch: &mut Self::Scratch,
-        out: &mut [Vec4],
+        out: &mut [Vec4; BLOCK],
     ) {
-        for (ray, c) in rays.iter().zip(out) {
-            *c = ray.resolve_in(ctx, scratch);
+        for l in crate::simd::lanes_of(lanes) {
+            out[l] = rays[l].resolve_in(ctx, scratch);
         }
     }
 
@@ -281,17 +283,16 @@ pub trait Integrator: Copy + Default + Send + Sync + std::fmt::Debug + 'static {
     fn fragment<V: Volume>(&self, ctx: &FrameContext<'_, V>) -> Fragment;
 }
 
-/// [`Integrator::integrate_packet`] one ray at a time: each of `rays`
-/// integrates the whole of its segment in `segs`.
+/// [`Integrator::integrate_packet`] one ray at a time: each searched lane
+/// of `block` integrates the whole of its segment.
 #[inline(always)]
 pub(crate) fn integrate_each<V: Volume, I: Integrator>(
     ctx: &FrameContext<'_, V>,
-    rays: &mut [I],
-    segs: &[RaySegment],
+    rays: &mut [I; BLOCK],
+    block: &RayBlock,
 ) -> u64 {
-    rays.iter_mut()
-        .zip(segs)
-        .map(|(ray, seg)| ray.integrate(Span::whole(ctx, seg)))
+    crate::simd::lanes_of(block.searched)
+        .map(|l| rays[l].integrate(Span::whole(ctx, &block.segment(l))))
         .sum()
 }
 

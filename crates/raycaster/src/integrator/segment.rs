@@ -109,53 +109,6 @@ impl RaySegment {
         Some(seg)
     }
 
-    /// [`RaySegment::with`] without clipping for the rays from `origin`
-    /// along the unit directions `dir[axis][lane]` whose box intervals
-    /// `(t_in, t_out)` are known ([`Aabb::intersect_lanes`]), lane by lane:
-    /// the same bits as `with` gives, with the divisions done for all lanes
-    /// at once. Only the lanes whose ray meets the box (`t_in <= t_out`)
-    /// mean anything.
-    ///
-    /// [`Aabb::intersect_lanes`]: crate::geometry::Aabb::intersect_lanes
-    #[inline(always)]
-    pub fn lanes<const N: usize>(
-        grid: &Grid,
-        origin: Vec3,
-        dir: &[[f32; N]; 3],
-        (t_in, t_out): (&[f32; N], &[f32; N]),
-        step: f32,
-        jitter: &[f32; N],
-    ) -> [Self; N] {
-        let inv_step = 1.0 / step;
-        let mut t0 = [0.0f32; N];
-        let mut last = [0.0f32; N];
-        let mut vdir = [[0.0f32; N]; 3];
-        let mut inv = [[0.0f32; N]; 3];
-        for l in 0..N {
-            t0[l] = t_in[l] + jitter[l] * step;
-            last[l] = last_estimate(t0[l], t_out[l], inv_step);
-            for a in 0..3 {
-                vdir[a][l] = dir[a][l] / grid.spacing[a];
-                inv[a][l] = 1.0 / vdir[a][l];
-            }
-        }
-        let origin = grid.world_to_voxel(origin);
-        let at = |v: &[[f32; N]; 3], l: usize| Vec3::new(v[0][l], v[1][l], v[2][l]);
-        std::array::from_fn(|l| RaySegment {
-            origin,
-            dir: at(&vdir, l),
-            inv_dir: at(&inv, l),
-            world_dir: at(dir, l),
-            t_in: t_in[l],
-            t_out: t_out[l],
-            t0: t0[l],
-            step,
-            inv_step,
-            first: 0,
-            count: sample_count(t0[l], t_out[l], step, last[l]),
-        })
-    }
-
     /// The ray clipped to the grid's box but keeping no sample (`None` when
     /// it misses the box): a ray known to see nothing, counted as entering
     /// the volume without the cost of preparing it. Only its box interval
@@ -216,14 +169,14 @@ impl RaySegment {
 /// multiplication by `1/s`: a division here would sit on every ray's
 /// critical path), made exact by [`sample_count`].
 #[inline(always)]
-fn last_estimate(t0: f32, t_out: f32, inv_step: f32) -> f32 {
+pub(super) fn last_estimate(t0: f32, t_out: f32, inv_step: f32) -> f32 {
     ((t_out - t0) * inv_step).floor().max(0.0)
 }
 
 /// The number of `k` with `t0 + k·s <= t_out` (`s` = `step`), computed as
 /// the renderers will, from `last`, [`last_estimate`]'s.
 #[inline(always)]
-fn sample_count(t0: f32, t_out: f32, step: f32, last: f32) -> u32 {
+pub(super) fn sample_count(t0: f32, t_out: f32, step: f32, last: f32) -> u32 {
     if t0 > t_out {
         return 0;
     }
@@ -241,47 +194,4 @@ fn sample_count(t0: f32, t_out: f32, step: f32, last: f32) -> u32 {
         last += 1;
     }
     last + 1
-}
-
-#[cfg(test)]
-mod tests {
-    use glam::{UVec3, Vec3};
-
-    use super::*;
-
-    /// The lane-wise set-up counts each lane's samples as `sample_count`
-    /// does, for box intervals and steps of every scale (where the
-    /// estimate's rounding is off by one either way, or more), empty
-    /// intervals and jitter included.
-    #[test]
-    fn lanes_count_samples_as_sample_count() {
-        let grid = Grid::new(UVec3::new(9, 7, 8), Vec3::new(0.5, 1.0, 2.0));
-        let mut rng = fastrand::Rng::with_seed(5);
-        let (mut checked, mut off) = (0, 0);
-        for _ in 0..20_000 {
-            let step = [1e-3, 0.07, 0.2, 0.5, 3.0][rng.usize(0..5)] * (0.5 + rng.f32());
-            let t_in: [f32; 16] = std::array::from_fn(|_| rng.f32() * 10f32.powi(rng.i32(-2..4)));
-            let t_out: [f32; 16] = std::array::from_fn(|l| {
-                match rng.u32(0..4) {
-                    // A whole number of steps, give or take the rounding.
-                    0 => t_in[l] + rng.u32(0..2000) as f32 * step,
-                    1 => t_in[l] - rng.f32(),
-                    _ => t_in[l] + rng.f32() * 10f32.powi(rng.i32(-3..3)),
-                }
-            });
-            let jitter: [f32; 16] = std::array::from_fn(|_| rng.f32());
-            let dir = [[0.6f32; 16], [0.0f32; 16], [0.8f32; 16]];
-            let segs = RaySegment::lanes(&grid, Vec3::ZERO, &dir, (&t_in, &t_out), step, &jitter);
-            for (l, seg) in segs.iter().enumerate() {
-                let t0 = t_in[l] + jitter[l] * step;
-                let last = last_estimate(t0, t_out[l], 1.0 / step);
-                let want = sample_count(t0, t_out[l], step, last);
-                assert_eq!(seg.count, want, "{t0} {} {step}", t_out[l]);
-                // Where the estimate itself was off.
-                off += (want != (last as u32 + 1) && t0 <= t_out[l]) as u32;
-                checked += 1;
-            }
-        }
-        assert!(checked == 320_000 && off > 100, "{off}");
-    }
 }

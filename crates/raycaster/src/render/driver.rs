@@ -17,10 +17,11 @@ use super::{Cancel, Frame, FrameStats, Renderer};
 use crate::camera::{Camera, PixelRect, Projection};
 use crate::error::Result;
 use crate::integrator::{
-    FrameContext, Integrator, IntegratorVisitor, PACKET_H, PACKET_W, RaySegment, Span, jitter,
+    BLOCK, FrameContext, Integrator, IntegratorVisitor, PACKET_H, PACKET_W, RayBlock, RaySegment,
+    Span, jitter,
 };
 use crate::scene::Scene;
-use crate::simd::{self, Isa, Kernel};
+use crate::simd::{self, Isa, Kernel, lanes_of};
 use crate::transfer::TransferFunction;
 use crate::volume::{Volume, VolumeVisitor};
 
@@ -105,17 +106,42 @@ impl<V: Volume> FrameJob<'_, V> {
     /// only the pixel-by-pixel way applies: an orthographic camera, a clip
     /// region, a direction component of 0. The block must lie inside the
     /// image.
+    ///
+    /// The rays go into `block`'s lanes, and its masks say which lanes are
+    /// searched and which culled. Returns false, leaving `block` as it
+    /// was, where only the pixel-by-pixel way applies.
     #[inline]
-    pub fn pixel_block(&self, i0: u32, j0: u32, all_enter: bool) -> Option<[PixelRay; BLOCK]> {
+    pub fn pixel_block(&self, i0: u32, j0: u32, all_enter: bool, block: &mut RayBlock) -> bool {
         if self.plan.camera.projection() != Projection::Perspective || self.plan.clip.is_some() {
-            return None;
+            return false;
         }
         simd::dispatch(PixelBlock {
             job: self,
             i0,
             j0,
             all_enter,
+            block,
         })
+    }
+
+    /// The rays of the pixels of `rect` (at most a block's, from `(i0,
+    /// j0)`) into `block`, pixel by pixel ([`FrameJob::pixel_in`]).
+    fn pixel_block_in(&self, rect: &PixelRect, all_enter: bool, block: &mut RayBlock) {
+        block.searched = 0;
+        block.culled = 0;
+        for j in rect.y0..rect.y1 {
+            for i in rect.x0..rect.x1 {
+                let l = ((j - rect.y0) * PACKET_W + i - rect.x0) as usize;
+                match self.pixel_in(i, j, all_enter) {
+                    PixelRay::Misses => {}
+                    PixelRay::Culled(_) => block.culled |= 1 << l,
+                    PixelRay::Searched(seg) => {
+                        block.set(l, &seg);
+                        block.searched |= 1 << l;
+                    }
+                }
+            }
+        }
     }
 
     /// Whether every pixel ray of `rect` enters the volume's box: its four
@@ -142,9 +168,6 @@ impl<V: Volume> FrameJob<'_, V> {
     }
 }
 
-/// Pixels in a block of [`FrameJob::pixel_block`].
-pub const BLOCK: usize = (PACKET_W * PACKET_H) as usize;
-
 /// [`FrameJob::pixel_block`] as a [`Kernel`]: its lane-wise loops over the
 /// block's 16 rays compiled 16 wide where the CPU has AVX-512, else 8 wide
 /// with AVX2 ([`Kernel::WIDE`]).
@@ -153,10 +176,11 @@ struct PixelBlock<'a, 'j, V: Volume> {
     i0: u32,
     j0: u32,
     all_enter: bool,
+    block: &'a mut RayBlock,
 }
 
 impl<V: Volume> Kernel for PixelBlock<'_, '_, V> {
-    type Output = Option<[PixelRay; BLOCK]>;
+    type Output = bool;
     const WIDE: bool = true;
 
     #[inline(always)]
@@ -166,6 +190,7 @@ impl<V: Volume> Kernel for PixelBlock<'_, '_, V> {
             i0,
             j0,
             all_enter,
+            block,
         } = self;
         let plan = job.plan;
         let grid = job.ctx.volume.grid();
@@ -178,45 +203,48 @@ impl<V: Volume> Kernel for PixelBlock<'_, '_, V> {
         // (A block whose rays are all culled in a rectangle known to enter
         // the box never comes here from the tile loop: it passes over such
         // blocks by their proxy depths, `ProxyDepth::culls`.)
-        let culled = start.map(|t| t == f32::INFINITY);
         let dir = plan.camera.perspective_dirs(&i, &j);
         if dir.iter().flatten().any(|&d| d == 0.0) {
-            return None;
+            return false;
         }
         let origin = plan.camera.position();
         let (t_in, t_out) = grid.bounds().intersect_lanes(origin, &dir);
-        // A culled ray of a rectangle not known to enter the box is traced
-        // to the box only to be counted (the rectangles along the box's
-        // silhouette, and those inside its screen rectangle but off its
-        // outline).
-        let culled_lane = |l: usize| {
-            if all_enter || t_in[l] <= t_out[l] {
-                PixelRay::Culled(None)
-            } else {
-                PixelRay::Misses
-            }
-        };
-        if !culled.contains(&false) {
-            return Some(std::array::from_fn(culled_lane));
+        // Which lanes are searched and culled. A culled ray of a rectangle
+        // not known to enter the box is traced to the box only to be
+        // counted (the rectangles along the box's silhouette, and those
+        // inside its screen rectangle but off its outline).
+        let mut searched = [0u32; BLOCK];
+        let mut culled = [0u32; BLOCK];
+        for l in 0..BLOCK {
+            let enters = t_in[l] <= t_out[l];
+            let is_culled = start[l] == f32::INFINITY;
+            culled[l] = (is_culled && (all_enter || enters)) as u32;
+            searched[l] = (!is_culled && enters) as u32;
+        }
+        block.searched = mask_of(&searched);
+        block.culled = mask_of(&culled);
+        if block.searched == 0 {
+            return true;
         }
         let jitter: [f32; BLOCK] = match plan.jitter {
             Some(seed) => std::array::from_fn(|l| jitter(i[l], j[l], seed)),
             None => [0.0; BLOCK],
         };
-        let segs = RaySegment::lanes(grid, origin, &dir, (&t_in, &t_out), plan.step, &jitter);
-        Some(std::array::from_fn(|l| {
-            if culled[l] {
-                culled_lane(l)
-            } else if t_in[l] <= t_out[l] {
-                let mut seg = segs[l];
-                // `pixel_in`'s `max` with the proxy's start (none: −∞).
-                seg.t_in = seg.t_in.max(start[l]);
-                PixelRay::Searched(seg)
-            } else {
-                PixelRay::Misses
-            }
-        }))
+        block.set_up(grid, origin, &dir, (&t_in, &t_out), plan.step, &jitter);
+        // `pixel_in`'s `max` with the proxy's start (none: −∞).
+        for (t_in, &start) in block.t_in.iter_mut().zip(&start) {
+            *t_in = t_in.max(start);
+        }
+        true
     }
+}
+
+/// The bit set of the lanes `v[l] != 0`.
+#[inline(always)]
+fn mask_of(v: &[u32; BLOCK]) -> u32 {
+    v.iter()
+        .enumerate()
+        .fold(0, |m, (l, &x)| m | ((x != 0) as u32) << l)
 }
 
 /// What [`FrameJob::pixel`] found for a pixel's ray.
@@ -455,7 +483,6 @@ fn render_tile_packets<V: Volume, I: Integrator>(
     rect: &PixelRect,
     all_enter: bool,
 ) -> u64 {
-    const N: usize = BLOCK;
     let width = rect.x1 - rect.x0;
     let mut samples = 0;
     let mut counts = RayCounts::default();
@@ -472,14 +499,9 @@ fn render_tile_packets<V: Volume, I: Integrator>(
     // miss the box or are culled.
     let mut rgb = film.background_rgb().repeat(rect.area() as usize);
     let mut scratch = I::Scratch::default();
-    let put = |rgb: &mut [u8], i: u32, j: u32, px: [u8; 3]| {
-        let at = 3 * ((j - rect.y0) * width + (i - rect.x0)) as usize;
-        rgb[at..at + 3].copy_from_slice(&px);
-    };
-    let mut segs = [RaySegment::default(); N];
-    let mut pixels = [(0u32, 0u32); N];
-    let mut rays = [I::default(); N];
-    let mut colours = [Vec4::ZERO; N];
+    let mut block = RayBlock::default();
+    let mut rays = [I::default(); BLOCK];
+    let mut colours = [Vec4::ZERO; BLOCK];
     for by in (rect.y0..rect.y1).step_by(PACKET_H as usize) {
         for bx in (rect.x0..rect.x1).step_by(PACKET_W as usize) {
             let whole = bx + PACKET_W <= rect.x1 && by + PACKET_H <= rect.y1;
@@ -493,38 +515,24 @@ fn render_tile_packets<V: Volume, I: Integrator>(
                 counts.entered += block_rect.area();
                 continue;
             }
-            let block = if whole {
-                job.pixel_block(bx, by, all_enter)
-            } else {
-                None
-            };
-            let mut n = 0;
-            for j in block_rect.y0..block_rect.y1 {
-                for i in block_rect.x0..block_rect.x1 {
-                    let ray = match &block {
-                        Some(b) => b[((j - by) * PACKET_W + i - bx) as usize],
-                        None => job.pixel_in(i, j, all_enter),
-                    };
-                    match ray {
-                        PixelRay::Misses => {}
-                        PixelRay::Culled(_) => counts.entered += 1,
-                        PixelRay::Searched(seg) => {
-                            segs[n] = seg;
-                            pixels[n] = (i, j);
-                            n += 1;
-                        }
-                    }
-                }
+            if !(whole && job.pixel_block(bx, by, all_enter, &mut block)) {
+                job.pixel_block_in(&block_rect, all_enter, &mut block);
             }
-            if n == 0 {
+            counts.entered += block.culled.count_ones() as u64;
+            if block.searched == 0 {
                 continue;
             }
-            rays[..n].fill(I::default());
-            samples += I::integrate_packet(&job.ctx, &mut rays[..n], &segs[..n]);
-            I::resolve_packet(&rays[..n], &job.ctx, &mut scratch, &mut colours[..n]);
-            for (&c, &(i, j)) in colours[..n].iter().zip(&pixels[..n]) {
+            for l in lanes_of(block.searched) {
+                rays[l] = I::default();
+            }
+            samples += I::integrate_packet(&job.ctx, &mut rays, &block);
+            I::resolve_packet(&rays, block.searched, &job.ctx, &mut scratch, &mut colours);
+            for l in lanes_of(block.searched) {
+                let c = colours[l];
                 counts.add(c);
-                put(&mut rgb, i, j, film.composite(c));
+                let (i, j) = (bx + l as u32 % PACKET_W, by + l as u32 / PACKET_W);
+                let at = 3 * ((j - rect.y0) * width + (i - rect.x0)) as usize;
+                rgb[at..at + 3].copy_from_slice(&film.composite(c));
             }
         }
     }
@@ -565,24 +573,31 @@ mod tests {
     impl CheckFrame {
         fn block_set_up<V: Volume>(&mut self, job: &FrameJob<'_, V>, bx: u32, by: u32) {
             for all_enter in [false, true] {
-                let Some(block) = job.pixel_block(bx, by, all_enter) else {
+                let mut block = RayBlock::default();
+                if !job.pixel_block(bx, by, all_enter, &mut block) {
                     continue;
-                };
+                }
                 self.blocks += 1;
-                for (l, ray) in block.iter().enumerate() {
+                for l in 0..BLOCK {
                     let (i, j) = (bx + l as u32 % PACKET_W, by + l as u32 / PACKET_W);
                     // A block leaves a culled ray's segment out.
                     let want = match job.pixel_in(i, j, all_enter) {
                         PixelRay::Culled(_) => PixelRay::Culled(None),
                         want => want,
                     };
-                    assert_eq!(bits(ray), bits(&want), "pixel {i},{j}");
-                    self.searched += matches!(ray, PixelRay::Searched(_)) as usize;
+                    let got = if block.searched >> l & 1 != 0 {
+                        PixelRay::Searched(block.segment(l))
+                    } else if block.culled >> l & 1 != 0 {
+                        PixelRay::Culled(None)
+                    } else {
+                        PixelRay::Misses
+                    };
+                    assert_eq!(bits(&got), bits(&want), "pixel {i},{j}");
+                    self.searched += matches!(got, PixelRay::Searched(_)) as usize;
                     self.culled_misses += (!all_enter
-                        && matches!(ray, PixelRay::Misses)
-                        && block.iter().any(|r| matches!(r, PixelRay::Culled(_))))
-                        as usize;
-                    self.culled += matches!(ray, PixelRay::Culled(_)) as usize;
+                        && matches!(got, PixelRay::Misses)
+                        && block.culled != 0) as usize;
+                    self.culled += matches!(got, PixelRay::Culled(_)) as usize;
                 }
             }
         }
@@ -593,24 +608,16 @@ mod tests {
             rect: &PixelRect,
             scratch: &mut I::Scratch,
         ) {
-            let mut segs = [RaySegment::default(); BLOCK];
-            let mut n = 0;
-            for j in rect.y0..rect.y1 {
-                for i in rect.x0..rect.x1 {
-                    if let PixelRay::Searched(seg) = job.pixel(i, j) {
-                        segs[n] = seg;
-                        n += 1;
-                    }
-                }
-            }
+            let mut block = RayBlock::default();
+            job.pixel_block_in(rect, false, &mut block);
             let mut rays = [I::default(); BLOCK];
-            I::integrate_packet(&job.ctx, &mut rays[..n], &segs[..n]);
+            I::integrate_packet(&job.ctx, &mut rays, &block);
             let mut together = [Vec4::ZERO; BLOCK];
-            I::resolve_packet(&rays[..n], &job.ctx, scratch, &mut together[..n]);
-            for (ray, c) in rays[..n].iter().zip(&together) {
-                let alone = ray.resolve(&job.ctx);
+            I::resolve_packet(&rays, block.searched, &job.ctx, scratch, &mut together);
+            for l in lanes_of(block.searched) {
+                let alone = rays[l].resolve(&job.ctx);
                 assert_eq!(
-                    c.to_array().map(f32::to_bits),
+                    together[l].to_array().map(f32::to_bits),
                     alone.to_array().map(f32::to_bits)
                 );
                 self.covered += (alone.w > 0.0) as usize;

@@ -25,14 +25,13 @@ mod crossing;
 mod packet;
 
 pub use crossing::CellCubic;
-pub(crate) use packet::{PACKET_H, PACKET_W};
-
 use glam::{IVec3, UVec3, Vec3, Vec3A, Vec4};
 
 use super::shading::powi_lanes;
-use super::{Fragment, FrameContext, Integrator, Occupancy, RaySegment, Span, integrate_each};
+use super::{BLOCK, Fragment, FrameContext, Integrator, Occupancy, RayBlock, Span, integrate_each};
 use crate::accel::{CellClass, CellMasks, IsoCells, SkipGrid};
 use crate::geometry::{Aabb, max_to, min_to};
+use crate::simd::lanes_of;
 use crate::volume::{Corners, GradientCache, Grid, Volume};
 
 /// How an isosurface's normal is found at a hit.
@@ -154,32 +153,41 @@ impl Integrator for IsoState {
     /// cells visited does not depend on how a renderer cut the image.
     fn integrate_packet<V: Volume>(
         ctx: &FrameContext<'_, V>,
-        rays: &mut [Self],
-        segs: &[RaySegment],
+        rays: &mut [Self; BLOCK],
+        block: &RayBlock,
     ) -> u64 {
-        let Some(fine) = packet_cells(ctx).filter(|_| segs.len() <= packet::PACKET) else {
-            return integrate_each(ctx, rays, segs);
+        let Some(fine) = packet_cells(ctx) else {
+            return integrate_each(ctx, rays, block);
         };
-        let mut lanes = [packet::PacketRay::EMPTY; packet::PACKET];
-        for (lane, seg) in lanes.iter_mut().zip(segs) {
-            *lane = packet::PacketRay {
-                ray: VoxelRay::with_inverse(seg.origin, seg.dir, seg.inv_dir),
-                // A whole span: from the box's (or the proxy's) entry to the
-                // exit; nothing at all for a ray clipping left empty.
-                t0: seg.t_in,
-                t1: if seg.is_empty() { f32::NAN } else { seg.t_out },
-            };
+        // A whole span: from the box's (or the proxy's) entry to the exit;
+        // nothing at all for a ray clipping left empty.
+        let mut lanes = packet::PacketLanes {
+            o: block.origin,
+            d: block.dir,
+            inv: block.inv_dir,
+            t0: block.t_in,
+            t1: block.t_out,
+        };
+        for l in 0..BLOCK {
+            if block.is_empty(l) {
+                lanes.t1[l] = f32::NAN;
+            }
         }
-        let found = search_lanes(ctx, fine, &lanes[..segs.len()]);
+        let found = search_lanes(ctx, fine, &lanes, block.searched);
         let mut steps = 0;
-        for ((ray, seg), (lane, f)) in rays.iter_mut().zip(segs).zip(lanes.iter().zip(&found)) {
-            *ray = IsoState {
+        for l in lanes_of(block.searched) {
+            let f = &found[l];
+            rays[l] = IsoState {
                 side: f.side,
                 hit: f.hit.map(|(t, cell)| IsoHit {
                     t,
-                    pos: lane.ray.at(t).into(),
+                    pos: lanes.ray(l).at(t).into(),
                     cell,
-                    world_dir: seg.world_dir,
+                    world_dir: Vec3::new(
+                        block.world_dir[0][l],
+                        block.world_dir[1][l],
+                        block.world_dir[2][l],
+                    ),
                 }),
             };
             steps += f.steps;
@@ -230,74 +238,74 @@ impl Integrator for IsoState {
     /// a direction and start close to each other on the surface. The same
     /// colours, to the bit, as one by one.
     fn resolve_packet<V: Volume>(
-        rays: &[Self],
+        rays: &[Self; BLOCK],
+        lanes: u32,
         ctx: &FrameContext<'_, V>,
         cache: &mut ShadingCache,
-        out: &mut [Vec4],
+        out: &mut [Vec4; BLOCK],
     ) {
         let casts = ctx.shading.is_some() && ctx.shadows && !ctx.lights.is_empty();
-        let fine = packet_cells(ctx).filter(|_| casts && rays.len() <= packet::PACKET);
+        let fine = packet_cells(ctx).filter(|_| casts);
+        // The lanes with a hit to shade.
+        let mut hits = 0u32;
+        for l in lanes_of(lanes) {
+            hits |= (rays[l].hit.is_some() as u32) << l;
+            out[l] = Vec4::ZERO;
+        }
         // Lane-wise normals and lights where nothing is one ray's own (a
         // mirror bounce, shadow rays beyond the cached lights').
         let lane_wise = ctx.shading.is_some()
             && ctx.reflection <= 0.0
             && ctx.lights.len() <= CACHED_LIGHTS
-            && rays.len() <= packet::PACKET
             && (!casts || fine.is_some());
         if !lane_wise {
             if let Some(fine) = fine {
-                let mut normals = [None; packet::PACKET];
-                for (ray, n) in rays.iter().zip(&mut normals) {
-                    if let Some(hit) = &ray.hit {
-                        *n = normal(ctx, hit, &mut cache.gradients);
+                let mut normals = [None; BLOCK];
+                for l in lanes_of(hits) {
+                    if let Some(hit) = &rays[l].hit {
+                        normals[l] = normal(ctx, hit, &mut cache.gradients);
                     }
                 }
-                let masks = shadow_masks(ctx, fine, rays, &normals);
-                for (lane, (ray, c)) in rays.iter().zip(out).enumerate() {
-                    *c = match &ray.hit {
-                        Some(hit) => shade(ctx, hit, normals[lane], Some((&masks, lane)), cache),
-                        None => Vec4::ZERO,
-                    };
+                let masks = shadow_masks(ctx, fine, rays, hits, &normals);
+                for l in lanes_of(hits) {
+                    if let Some(hit) = &rays[l].hit {
+                        out[l] = shade(ctx, hit, normals[l], Some((&masks, l)), cache);
+                    }
                 }
             } else {
-                for (ray, c) in rays.iter().zip(out) {
-                    *c = ray.resolve_in(ctx, cache);
+                for l in lanes_of(hits) {
+                    out[l] = rays[l].resolve_in(ctx, cache);
                 }
             }
             return;
         }
         // The gradients one by one (the cache of corner differences), the
         // rest for all lanes at once.
-        let mut g = [Vec3::ZERO; packet::PACKET];
-        let mut view = [Vec3::ZERO; packet::PACKET];
-        let mut hits = 0u32;
-        for (l, ray) in rays.iter().enumerate() {
-            if let Some(hit) = &ray.hit {
+        let mut g = [Vec3::ZERO; BLOCK];
+        let mut view = [Vec3::ZERO; BLOCK];
+        for l in lanes_of(hits) {
+            if let Some(hit) = &rays[l].hit {
                 g[l] = gradient_at(ctx, hit, &mut cache.gradients);
                 view[l] = -hit.world_dir;
-                hits |= 1 << l;
             }
         }
-        let lanes = LaneNormals::new(&g, &view);
+        let normals = LaneNormals::new(&g, &view);
         let masks = match fine {
             Some(fine) => {
-                let normals: [Option<Vec3>; packet::PACKET] = std::array::from_fn(|l| {
-                    (hits >> l & 1 != 0 && lanes.valid[l] != 0).then(|| lanes.normal(l))
-                });
-                shadow_masks(ctx, fine, rays, &normals)
+                let mut each = [None; BLOCK];
+                for l in lanes_of(hits) {
+                    each[l] = (normals.valid[l] != 0).then(|| normals.normal(l));
+                }
+                shadow_masks(ctx, fine, rays, hits, &each)
             }
             None => ShadowMasks::default(),
         };
         let c = *cache
             .colour
             .get_or_insert_with(|| ctx.tf.evaluate(ctx.iso_value).truncate());
-        let rgb = lit_lanes(ctx, c, &lanes, &view, casts.then_some(&masks));
-        for (l, o) in out.iter_mut().enumerate().take(rays.len()) {
-            *o = if hits >> l & 1 != 0 {
-                rgb[l].extend(1.0)
-            } else {
-                Vec4::ZERO
-            };
+        let rgb = lit_lanes(ctx, c, &normals, &view, casts.then_some(&masks));
+        for l in lanes_of(hits) {
+            out[l] = rgb[l].extend(1.0);
         }
     }
 }
@@ -332,37 +340,33 @@ fn shade<V: Volume>(
     rgb.extend(1.0)
 }
 
-/// The shadow rays of a packet's hits (`rays`, with their view-facing
-/// normals `normals`) towards each of the first [`CACHED_LIGHTS`] lights,
-/// walked as packets through the fine occupancy level `fine`: the rays
-/// [`in_shadow`] would cast, with the same answers.
+/// The shadow rays of a packet's hits (the lanes `hits` of `rays`, with
+/// their view-facing normals `normals`) towards each of the first
+/// [`CACHED_LIGHTS`] lights, walked as packets through the fine occupancy
+/// level `fine`: the rays [`in_shadow`] would cast, with the same answers.
 fn shadow_masks<V: Volume>(
     ctx: &FrameContext<'_, V>,
     fine: &IsoCells,
-    rays: &[IsoState],
-    normals: &[Option<Vec3>; packet::PACKET],
+    rays: &[IsoState; BLOCK],
+    hits: u32,
+    normals: &[Option<Vec3>; BLOCK],
 ) -> ShadowMasks {
     let grid = ctx.volume.grid();
     let mut masks = ShadowMasks::default();
     for (k, (&l, mask)) in ctx.lights.iter().zip(&mut masks).enumerate() {
         let towards_light = VoxelRay::new(Vec3::ZERO, l / grid.spacing);
-        // A lane per hit, in place; a lane that casts no ray searches an
-        // empty interval (and finds nothing).
-        let mut lanes = [packet::PacketRay {
-            ray: towards_light,
-            t0: f32::NAN,
-            t1: f32::NAN,
-        }; packet::PACKET];
-        let mut any = false;
-        for (lane, (ray, n)) in lanes.iter_mut().zip(rays.iter().zip(normals)) {
-            let (Some(hit), Some(n)) = (&ray.hit, n) else {
+        // A lane per hit, in place.
+        let mut lanes = packet::PacketLanes::EMPTY;
+        let mut casting = 0u32;
+        for lane in lanes_of(hits) {
+            let (Some(hit), Some(n)) = (&rays[lane].hit, normals[lane]) else {
                 continue;
             };
             if n.dot(l) <= 0.0 {
                 continue;
             }
             let ray = VoxelRay {
-                origin: off_surface(grid, hit.pos.into(), *n).into(),
+                origin: off_surface(grid, hit.pos.into(), n).into(),
                 ..towards_light
             };
             let t1 = shadow_reach(ctx, &ray, k);
@@ -370,15 +374,15 @@ fn shadow_masks<V: Volume>(
             if t1.is_nan() || t1 <= 0.0 {
                 continue;
             }
-            *lane = packet::PacketRay { ray, t0: 0.0, t1 };
-            any = true;
+            lanes.set(lane, &packet::PacketRay { ray, t0: 0.0, t1 });
+            casting |= 1 << lane;
         }
-        if !any {
+        if casting == 0 {
             continue;
         }
-        let found = search_lanes(ctx, fine, &lanes[..rays.len()]);
-        for (lane, f) in found[..rays.len()].iter().enumerate() {
-            if f.hit.is_some() {
+        let found = search_lanes(ctx, fine, &lanes, casting);
+        for lane in lanes_of(casting) {
+            if found[lane].hit.is_some() {
                 *mask |= 1 << lane;
             }
         }
@@ -393,13 +397,14 @@ fn packet_cells<'a, V: Volume>(ctx: &FrameContext<'a, V>) -> Option<&'a IsoCells
     ctx.skip.iso_cells().filter(|_| ctx.ess)
 }
 
-/// The first crossings of the iso value along a packet's `lanes` (at most
-/// [`packet::PACKET`]) in the frame's volume, one per lane.
+/// The first crossings of the iso value along the lanes `mask` of a
+/// packet's `lanes` in the frame's volume, lane `l`'s in entry `l`.
 #[inline]
 fn search_lanes<V: Volume>(
     ctx: &FrameContext<'_, V>,
     fine: &IsoCells,
-    lanes: &[packet::PacketRay],
+    lanes: &packet::PacketLanes,
+    mask: u32,
 ) -> [packet::PacketHit; packet::PACKET] {
     let mut found = [packet::PacketHit::default(); packet::PACKET];
     packet::search_packet(
@@ -408,7 +413,8 @@ fn search_lanes<V: Volume>(
         fine,
         ctx.iso_value,
         lanes,
-        &mut found[..lanes.len()],
+        mask,
+        &mut found,
     );
     found
 }
@@ -722,16 +728,6 @@ pub(crate) struct VoxelRay {
 }
 
 impl VoxelRay {
-    /// A placeholder: along +x from the origin.
-    pub const AXIS_X: VoxelRay = VoxelRay {
-        origin: Vec3A::ZERO,
-        dir: Vec3A::X,
-        inv_dir: Vec3A::X,
-        step: IVec3::X,
-        nudge: 1e-4,
-        tol: 1e-5,
-    };
-
     pub fn new(origin: Vec3, dir: Vec3) -> Self {
         Self::with_inverse(origin, dir, dir.recip())
     }

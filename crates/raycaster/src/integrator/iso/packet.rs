@@ -29,18 +29,15 @@ use glam::{IVec3, UVec3, Vec3};
 use super::{CellCubic, Search, VoxelRay};
 use crate::accel::{IsoCells, SkipGrid};
 use crate::geometry::{max_to, min_to};
-use crate::simd::{self, Isa, Kernel};
+use crate::integrator::BLOCK;
+use crate::simd::{self, Isa, Kernel, lanes_of};
 use crate::volume::Volume;
 
-/// Rays per packet: a block of 4×4 pixels.
-pub(crate) const PACKET: usize = 16;
+/// Rays per packet: a block of 4×4 pixels ([`BLOCK`]).
+pub(crate) const PACKET: usize = BLOCK;
 
 // Lane masks are `u32`s, and `reduce` halves the lanes.
 const _: () = assert!(PACKET <= 32 && PACKET.is_power_of_two());
-
-/// Pixels per packet along a row and along a column.
-pub(crate) const PACKET_W: u32 = 4;
-pub(crate) const PACKET_H: u32 = 4;
 
 /// How many slices a ray is walked in its packet before it goes on alone.
 /// Primary rays start at their proxy depth, a cell or so before the
@@ -64,13 +61,68 @@ pub(crate) struct PacketRay {
     pub t1: f32,
 }
 
-impl PacketRay {
-    /// A placeholder for an unused lane.
-    pub const EMPTY: PacketRay = PacketRay {
-        ray: VoxelRay::AXIS_X,
-        t0: f32::NAN,
-        t1: f32::NAN,
+/// The rays of a packet, lane by lane (a structure of arrays): each lane's
+/// ray in voxel space and the part of it to search, `t0..t1` (nothing
+/// where either is NaN or `t0 >= t1`).
+#[derive(Debug, Clone, Copy)]
+pub(crate) struct PacketLanes {
+    pub o: [[f32; PACKET]; 3],
+    pub d: [[f32; PACKET]; 3],
+    pub inv: [[f32; PACKET]; 3],
+    pub t0: [f32; PACKET],
+    pub t1: [f32; PACKET],
+}
+
+impl PacketLanes {
+    /// Every lane along +x from the origin, with nothing to search.
+    pub const EMPTY: PacketLanes = PacketLanes {
+        o: [[0.0; PACKET]; 3],
+        d: [[1.0; PACKET], [0.0; PACKET], [0.0; PACKET]],
+        inv: [
+            [1.0; PACKET],
+            [f32::INFINITY; PACKET],
+            [f32::INFINITY; PACKET],
+        ],
+        t0: [f32::NAN; PACKET],
+        t1: [f32::NAN; PACKET],
     };
+
+    /// Puts `r` in lane `l`.
+    #[inline(always)]
+    pub fn set(&mut self, l: usize, r: &PacketRay) {
+        for a in 0..3 {
+            self.o[a][l] = r.ray.origin[a];
+            self.d[a][l] = r.ray.dir[a];
+            self.inv[a][l] = r.ray.inv_dir[a];
+        }
+        self.t0[l] = r.t0;
+        self.t1[l] = r.t1;
+    }
+
+    /// The rays `rays` in lanes `0..rays.len()`, and the mask of those
+    /// lanes.
+    #[cfg(test)]
+    fn of(rays: &[PacketRay]) -> (Self, u32) {
+        let mut lanes = Self::EMPTY;
+        for (l, r) in rays.iter().enumerate() {
+            lanes.set(l, r);
+        }
+        (lanes, ((1u64 << rays.len()) - 1) as u32)
+    }
+
+    /// Lane `l`'s direction.
+    #[inline(always)]
+    fn dir(&self, l: usize) -> Vec3 {
+        Vec3::new(self.d[0][l], self.d[1][l], self.d[2][l])
+    }
+
+    /// Lane `l`'s ray.
+    #[inline(always)]
+    pub fn ray(&self, l: usize) -> VoxelRay {
+        let o = Vec3::new(self.o[0][l], self.o[1][l], self.o[2][l]);
+        let inv = Vec3::new(self.inv[0][l], self.inv[1][l], self.inv[2][l]);
+        VoxelRay::with_inverse(o, self.dir(l), inv)
+    }
 }
 
 /// What the search of one ray found: as [`Search`] reports it.
@@ -81,32 +133,44 @@ pub(crate) struct PacketHit {
     pub steps: u64,
 }
 
-/// Searches the rays of `rays` (at most [`PACKET`]) for their first
+/// Searches the rays of the lanes `lanes` of `rays` for their first
 /// crossings of `iso` through the occupancy structure `skip` (with its fine
-/// level `fine`), into `out` (one per ray).
+/// level `fine`), lane `l`'s into `out[l]`.
 pub(crate) fn search_packet<V: Volume>(
     volume: &V,
     skip: &SkipGrid,
     fine: &IsoCells,
     iso: f32,
-    rays: &[PacketRay],
-    out: &mut [PacketHit],
+    rays: &PacketLanes,
+    lanes: u32,
+    out: &mut [PacketHit; PACKET],
 ) {
-    debug_assert!(rays.len() <= PACKET && out.len() == rays.len());
     // Rays are grouped by major axis and direction along it; a ray with a
     // zero direction component goes alone (its slab test would need the
     // scalar walk's care for ±0).
-    let mut left = ((1u64 << rays.len()) - 1) as u32;
+    let mut keys = [None; PACKET];
+    for l in lanes_of(lanes) {
+        keys[l] = axis_of(rays.dir(l));
+    }
+    let mut left = lanes;
     while left != 0 {
         let first = left.trailing_zeros() as usize;
-        let Some(key) = axis_of(&rays[first].ray) else {
-            out[first] = alone(volume, skip, iso, &rays[first], None);
+        let Some(key) = keys[first] else {
+            out[first] = alone(
+                volume,
+                skip,
+                iso,
+                &rays.ray(first),
+                rays.t0[first],
+                rays.t1[first],
+                None,
+            );
             left &= !(1 << first);
             continue;
         };
         let mut group = 0u32;
-        for (l, r) in rays.iter().enumerate() {
-            if left & (1 << l) != 0 && axis_of(&r.ray) == Some(key) {
+        for l in lanes_of(left) {
+            if keys[l] == Some(key) {
                 group |= 1 << l;
             }
         }
@@ -132,10 +196,10 @@ struct Group<'a, V: Volume> {
     skip: &'a SkipGrid,
     fine: &'a IsoCells,
     iso: f32,
-    rays: &'a [PacketRay],
+    rays: &'a PacketLanes,
     group: u32,
     key: (usize, i32),
-    out: &'a mut [PacketHit],
+    out: &'a mut [PacketHit; PACKET],
 }
 
 impl<V: Volume> Kernel for Group<'_, V> {
@@ -158,11 +222,10 @@ impl<V: Volume> Kernel for Group<'_, V> {
     }
 }
 
-/// A ray's major axis and its step along it, `None` when a direction
-/// component is zero.
+/// The major axis of a ray along `d` and its step along it, `None` when a
+/// direction component is zero.
 #[inline]
-fn axis_of(ray: &VoxelRay) -> Option<(usize, i32)> {
-    let d = Vec3::from(ray.dir);
+fn axis_of(d: Vec3) -> Option<(usize, i32)> {
     if d.x == 0.0 || d.y == 0.0 || d.z == 0.0 || !d.is_finite() {
         return None;
     }
@@ -177,16 +240,19 @@ fn axis_of(ray: &VoxelRay) -> Option<(usize, i32)> {
     Some((k, if d[k] > 0.0 { 1 } else { -1 }))
 }
 
-/// The scalar walk of one ray from `t` (its side there known or not).
+/// The scalar walk of one ray over `t0..t1` (its side at `t0` known or
+/// not).
 fn alone<V: Volume>(
     volume: &V,
     skip: &SkipGrid,
     iso: f32,
-    r: &PacketRay,
+    ray: &VoxelRay,
+    t0: f32,
+    t1: f32,
     side: Option<bool>,
 ) -> PacketHit {
     let mut search = Search::new(volume, iso, side);
-    search.walk(Some(skip), &r.ray, r.t0, r.t1);
+    search.walk(Some(skip), ray, t0, t1);
     PacketHit {
         hit: search.hit,
         side: search.side,
@@ -238,66 +304,72 @@ fn walk_group<V: Volume, I: Isa>(
     skip: &SkipGrid,
     fine: &IsoCells,
     iso: f32,
-    rays: &[PacketRay],
+    rays: &PacketLanes,
     group: u32,
     (k, step): (usize, i32),
-    out: &mut [PacketHit],
+    out: &mut [PacketHit; PACKET],
 ) {
     let dims = volume.grid().dims;
     let last = (dims.max(UVec3::splat(2)) - UVec3::splat(2)).as_ivec3();
     let (u, v) = ((k + 1) % 3, (k + 2) % 3);
     let last_a = last.to_array();
+    // Lanes outside the group cross nothing: an empty interval.
     let mut lanes = Lanes {
-        o: [[0.0; PACKET]; 3],
-        d: [[0.0; PACKET]; 3],
-        inv: [[0.0; PACKET]; 3],
+        o: rays.o,
+        d: rays.d,
+        inv: rays.inv,
         near: [[0.0; PACKET]; 3],
         far: [[0.0; PACKET]; 3],
-        // Lanes outside the group cross nothing: an empty interval.
-        t0: [f32::INFINITY; PACKET],
-        t1: [f32::NEG_INFINITY; PACKET],
+        t0: [0.0; PACKET],
+        t1: [0.0; PACKET],
     };
+    for l in 0..PACKET {
+        let in_group = (group >> l) & 1 != 0;
+        lanes.t0[l] = if in_group { rays.t0[l] } else { f32::INFINITY };
+        lanes.t1[l] = if in_group {
+            rays.t1[l]
+        } else {
+            f32::NEG_INFINITY
+        };
+        for a in 0..3 {
+            let back = (rays.d[a][l] < 0.0) as u32 as f32;
+            lanes.near[a][l] = back;
+            lanes.far[a][l] = 1.0 - back;
+        }
+    }
     // Per lane: its side of the iso value (also as bits), the slice it
     // starts in (its window is the `WINDOW` slices from there along
-    // `step`), and whether it is still searching.
+    // `step`), whether it is still searching, and the tolerance of its
+    // crossings.
     let mut side = [false; PACKET];
     let mut side_bits = 0u32;
     let mut start = [0i32; PACKET];
+    let mut tol = [0.0f32; PACKET];
     // Cells visited per lane (the DDA's steps, as the scalar walk counts
     // them): in the slices, and alone after its window. 32-bit lanes in the
     // per-cell loop, so that it is compiled as wide as its `f32`s.
     let mut steps = [0u32; PACKET];
     let mut steps_alone = [0u64; PACKET];
     let mut active = 0u32;
-    for (l, r) in rays.iter().enumerate() {
-        if group & (1 << l) == 0 {
-            continue;
-        }
-        for a in 0..3 {
-            lanes.o[a][l] = r.ray.origin[a];
-            lanes.d[a][l] = r.ray.dir[a];
-            lanes.inv[a][l] = r.ray.inv_dir[a];
-            let back = (r.ray.dir[a] < 0.0) as u32 as f32;
-            lanes.near[a][l] = back;
-            lanes.far[a][l] = 1.0 - back;
-        }
-        lanes.t0[l] = r.t0;
-        lanes.t1[l] = r.t1;
+    for l in lanes_of(group) {
+        let (t0, t1) = (rays.t0[l], rays.t1[l]);
         out[l] = PacketHit::default();
-        if r.t0.is_nan() || r.t1.is_nan() || r.t0 >= r.t1 {
+        if t0.is_nan() || t1.is_nan() || t0 >= t1 {
             continue;
         }
+        let ray = rays.ray(l);
+        tol[l] = ray.tol;
         // The cell the walk starts in, and the side of the iso value there:
         // the cell's, as the walk takes it, when the cell lies on one side;
         // else the cubic's value at the start, as the walk computes it.
-        let probe = r.ray.at(r.t0 + r.ray.nudge.min(0.5 * (r.t1 - r.t0)));
+        let probe = ray.at(t0 + ray.nudge.min(0.5 * (t1 - t0)));
         let cell = probe.floor().as_ivec3().clamp(IVec3::ZERO, last);
         side[l] = match fine.cell_state(cell.as_uvec3()) {
             Some(st) if !st.straddles => st.above,
             _ => {
                 let corners = volume.corners(cell.as_uvec3());
-                let p0 = r.ray.at(r.t0) - cell.as_vec3();
-                CellCubic::new(&corners, p0, r.ray.dir.into(), iso).eval(0.0) >= 0.0
+                let p0 = ray.at(t0) - cell.as_vec3();
+                CellCubic::new(&corners, p0, ray.dir.into(), iso).eval(0.0) >= 0.0
             }
         };
         side_bits |= (side[l] as u32) << l;
@@ -441,15 +513,11 @@ fn walk_group<V: Volume, I: Isa>(
                     // (`stays_on` failed just above for each open lane).
                     let mut across = [0u32; PACKET];
                     let mut len = [0.0f32; PACKET];
-                    let mut tol = [0.0f32; PACKET];
                     for l in 0..PACKET {
                         across[l] = ((cubic[l].eval(0.0) >= 0.0) != side[l]) as u32;
                         len[l] = te[l] - tc[l];
                     }
                     let across = lane_mask(isa, &across);
-                    for l in lanes_of(open) {
-                        tol[l] = rays[l].ray.tol;
-                    }
                     let dt =
                         CellCubic::first_crossings_unproven(&cubic, &len, &tol, open & !across);
                     for l in lanes_of(open) {
@@ -487,11 +555,8 @@ fn walk_group<V: Volume, I: Isa>(
             out[l].hit = Some((best_t[l], best_cell[l]));
         }
         for l in lanes_of(expires) {
-            let resumed = PacketRay {
-                t0: tb[l],
-                ..rays[l]
-            };
-            out[l] = alone(volume, skip, iso, &resumed, Some(side[l]));
+            let ray = rays.ray(l);
+            out[l] = alone(volume, skip, iso, &ray, tb[l], rays.t1[l], Some(side[l]));
             steps_alone[l] = out[l].steps;
         }
         active &= !(found | left | expires);
@@ -500,20 +565,6 @@ fn walk_group<V: Volume, I: Isa>(
     for l in lanes_of(started) {
         out[l].steps = steps[l] as u64 + steps_alone[l];
     }
-}
-
-/// The lanes set in `mask`, lowest first: one step per set bit (a loop
-/// over all lanes testing each bit mispredicts the test).
-#[inline(always)]
-fn lanes_of(mask: u32) -> impl Iterator<Item = usize> {
-    let mut m = mask;
-    std::iter::from_fn(move || {
-        (m != 0).then(|| {
-            let l = m.trailing_zeros() as usize;
-            m &= m - 1;
-            l
-        })
-    })
 }
 
 /// The least (`f = min_to`) or greatest (`max_to`) of the lanes, as a tree.
@@ -632,7 +683,8 @@ mod tests {
             let (mut hits, mut handed_on, mut rounded, mut rays_seen) = (0, 0, 0, 0);
             for rays in random_packets(volume.grid(), &mut rng, 3000) {
                 let mut out = [PacketHit::default(); PACKET];
-                search_packet(volume, skip, fine, ISO, &rays, &mut out[..rays.len()]);
+                let (lanes, mask) = PacketLanes::of(&rays);
+                search_packet(volume, skip, fine, ISO, &lanes, mask, &mut out);
                 for (l, r) in rays.iter().enumerate() {
                     // The scalar walk's hit, to the bit, in the same cell;
                     // except, rarely, by the rounding of the cell's entry:
@@ -656,14 +708,15 @@ mod tests {
                     hits += search.hit.is_some() as u32;
                     // Rays whose search spans more slices than a window go
                     // on alone.
-                    if let Some((k, _)) = axis_of(&r.ray) {
+                    if let Some((k, _)) = axis_of(r.ray.dir.into()) {
                         let end = search.hit.map_or(r.t1, |(t, _)| t);
                         let slices = r.ray.at(end)[k].floor() - r.ray.at(r.t0)[k].floor();
                         handed_on += (slices.abs() >= WINDOW as f32) as u32;
                     }
                     // The same alone as in its packet.
-                    let mut alone = [PacketHit::default()];
-                    search_packet(volume, skip, fine, ISO, std::slice::from_ref(r), &mut alone);
+                    let mut alone = [PacketHit::default(); PACKET];
+                    let (lane, mask) = PacketLanes::of(std::slice::from_ref(r));
+                    search_packet(volume, skip, fine, ISO, &lane, mask, &mut alone);
                     assert_eq!(alone[0].hit, out[l].hit);
                     assert_eq!(alone[0].steps, out[l].steps);
                 }
