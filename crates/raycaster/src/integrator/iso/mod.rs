@@ -161,27 +161,36 @@ impl Integrator for IsoState {
         };
         // A whole span: from the box's (or the proxy's) entry to the exit;
         // nothing at all for a ray clipping left empty.
-        let mut lanes = packet::PacketLanes {
-            o: block.origin,
-            d: block.dir,
-            inv: block.inv_dir,
-            t0: block.t_in,
-            t1: block.t_out,
-        };
-        for l in 0..BLOCK {
-            if block.is_empty(l) {
-                lanes.t1[l] = f32::NAN;
-            }
+        let mut empty = [0u32; BLOCK];
+        for (l, e) in empty.iter_mut().enumerate() {
+            *e = block.is_empty(l) as u32;
         }
-        let found = search_lanes(ctx, fine, &lanes, block.searched);
+        let empty = empty.iter().enumerate().fold(0, |m, (l, &e)| m | e << l);
+        let rays_in = packet::PacketRays {
+            o: &block.origin,
+            d: &block.dir,
+            inv: &block.inv_dir,
+            t0: &block.t_in,
+            t1: &block.t_out,
+        };
+        let found = search_lanes(ctx, fine, rays_in, block.searched & !empty);
         let mut steps = 0;
         for l in lanes_of(block.searched) {
             let f = &found[l];
+            // `VoxelRay::at`'s arithmetic.
+            let at = |t: f32| {
+                let (o, d) = (&block.origin, &block.dir);
+                Vec3A::new(
+                    o[0][l] + d[0][l] * t,
+                    o[1][l] + d[1][l] * t,
+                    o[2][l] + d[2][l] * t,
+                )
+            };
             rays[l] = IsoState {
                 side: f.side,
                 hit: f.hit.map(|(t, cell)| IsoHit {
                     t,
-                    pos: lanes.ray(l).at(t).into(),
+                    pos: at(t),
                     cell,
                     world_dir: Vec3::new(
                         block.world_dir[0][l],
@@ -380,7 +389,7 @@ fn shadow_masks<V: Volume>(
         if casting == 0 {
             continue;
         }
-        let found = search_lanes(ctx, fine, &lanes, casting);
+        let found = search_lanes(ctx, fine, lanes.rays(), casting);
         for lane in lanes_of(casting) {
             if found[lane].hit.is_some() {
                 *mask |= 1 << lane;
@@ -403,7 +412,7 @@ fn packet_cells<'a, V: Volume>(ctx: &FrameContext<'a, V>) -> Option<&'a IsoCells
 fn search_lanes<V: Volume>(
     ctx: &FrameContext<'_, V>,
     fine: &IsoCells,
-    lanes: &packet::PacketLanes,
+    lanes: packet::PacketRays<'_>,
     mask: u32,
 ) -> [packet::PacketHit; packet::PACKET] {
     let mut found = [packet::PacketHit::default(); packet::PACKET];

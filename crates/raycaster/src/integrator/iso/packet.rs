@@ -63,14 +63,36 @@ pub(crate) struct PacketRay {
 
 /// The rays of a packet, lane by lane (a structure of arrays): each lane's
 /// ray in voxel space and the part of it to search, `t0..t1` (nothing
-/// where either is NaN or `t0 >= t1`).
+/// where either is NaN or `t0 >= t1`). Borrowed, so that the packet walk
+/// reads a [`RayBlock`]'s lanes where they are.
+///
+/// [`RayBlock`]: crate::integrator::RayBlock
+#[derive(Debug, Clone, Copy)]
+pub(crate) struct PacketRays<'a> {
+    pub o: &'a [[f32; PACKET]; 3],
+    pub d: &'a [[f32; PACKET]; 3],
+    pub inv: &'a [[f32; PACKET]; 3],
+    pub t0: &'a [f32; PACKET],
+    pub t1: &'a [f32; PACKET],
+}
+
+impl PacketRays<'_> {
+    /// Lane `l`'s ray.
+    #[inline(always)]
+    fn ray(&self, l: usize) -> VoxelRay {
+        let at = |v: &[[f32; PACKET]; 3]| Vec3::new(v[0][l], v[1][l], v[2][l]);
+        VoxelRay::with_inverse(at(self.o), at(self.d), at(self.inv))
+    }
+}
+
+/// [`PacketRays`] that own their lanes (shadow rays).
 #[derive(Debug, Clone, Copy)]
 pub(crate) struct PacketLanes {
-    pub o: [[f32; PACKET]; 3],
-    pub d: [[f32; PACKET]; 3],
-    pub inv: [[f32; PACKET]; 3],
-    pub t0: [f32; PACKET],
-    pub t1: [f32; PACKET],
+    o: [[f32; PACKET]; 3],
+    d: [[f32; PACKET]; 3],
+    inv: [[f32; PACKET]; 3],
+    t0: [f32; PACKET],
+    t1: [f32; PACKET],
 }
 
 impl PacketLanes {
@@ -110,18 +132,16 @@ impl PacketLanes {
         (lanes, ((1u64 << rays.len()) - 1) as u32)
     }
 
-    /// Lane `l`'s direction.
+    /// The lanes as [`PacketRays`].
     #[inline(always)]
-    fn dir(&self, l: usize) -> Vec3 {
-        Vec3::new(self.d[0][l], self.d[1][l], self.d[2][l])
-    }
-
-    /// Lane `l`'s ray.
-    #[inline(always)]
-    pub fn ray(&self, l: usize) -> VoxelRay {
-        let o = Vec3::new(self.o[0][l], self.o[1][l], self.o[2][l]);
-        let inv = Vec3::new(self.inv[0][l], self.inv[1][l], self.inv[2][l]);
-        VoxelRay::with_inverse(o, self.dir(l), inv)
+    pub fn rays(&self) -> PacketRays<'_> {
+        PacketRays {
+            o: &self.o,
+            d: &self.d,
+            inv: &self.inv,
+            t0: &self.t0,
+            t1: &self.t1,
+        }
     }
 }
 
@@ -141,90 +161,116 @@ pub(crate) fn search_packet<V: Volume>(
     skip: &SkipGrid,
     fine: &IsoCells,
     iso: f32,
-    rays: &PacketLanes,
+    rays: PacketRays<'_>,
     lanes: u32,
     out: &mut [PacketHit; PACKET],
 ) {
-    // Rays are grouped by major axis and direction along it; a ray with a
-    // zero direction component goes alone (its slab test would need the
-    // scalar walk's care for ±0).
-    let mut keys = [None; PACKET];
-    for l in lanes_of(lanes) {
-        keys[l] = axis_of(rays.dir(l));
-    }
-    let mut left = lanes;
-    while left != 0 {
-        let first = left.trailing_zeros() as usize;
-        let Some(key) = keys[first] else {
-            out[first] = alone(
-                volume,
-                skip,
-                iso,
-                &rays.ray(first),
-                rays.t0[first],
-                rays.t1[first],
-                None,
-            );
-            left &= !(1 << first);
-            continue;
-        };
-        let mut group = 0u32;
-        for l in lanes_of(left) {
-            if keys[l] == Some(key) {
-                group |= 1 << l;
-            }
-        }
-        left &= !group;
-        simd::dispatch(Group {
-            volume,
-            skip,
-            fine,
-            iso,
-            rays,
-            group,
-            key,
-            out: &mut *out,
-        });
-    }
+    simd::dispatch(Packet {
+        volume,
+        skip,
+        fine,
+        iso,
+        rays,
+        lanes,
+        out,
+    });
 }
 
-/// [`walk_group`] as a [`Kernel`]: its lane-wise loops over the 16 lanes
-/// compiled 16 wide where the CPU has AVX-512, else 8 wide with AVX2
+/// [`search_packet`] as a [`Kernel`]: its lane-wise loops over the 16
+/// lanes compiled 16 wide where the CPU has AVX-512, else 8 wide with AVX2
 /// ([`Kernel::WIDE`]).
-struct Group<'a, V: Volume> {
+struct Packet<'a, V: Volume> {
     volume: &'a V,
     skip: &'a SkipGrid,
     fine: &'a IsoCells,
     iso: f32,
-    rays: &'a PacketLanes,
-    group: u32,
-    key: (usize, i32),
+    rays: PacketRays<'a>,
+    lanes: u32,
     out: &'a mut [PacketHit; PACKET],
 }
 
-impl<V: Volume> Kernel for Group<'_, V> {
+impl<V: Volume> Kernel for Packet<'_, V> {
     type Output = ();
     const WIDE: bool = true;
 
     #[inline(always)]
     fn run<I: Isa>(self, isa: I) {
-        walk_group(
-            isa,
-            self.volume,
-            self.skip,
-            self.fine,
-            self.iso,
-            self.rays,
-            self.group,
-            self.key,
-            self.out,
-        );
+        let Packet {
+            volume,
+            skip,
+            fine,
+            iso,
+            rays,
+            lanes,
+            out,
+        } = self;
+        // Rays are grouped by major axis and direction along it; a ray with
+        // a zero direction component goes alone (its slab test would need
+        // the scalar walk's care for ±0).
+        let mut keys = [0u32; PACKET];
+        for (l, key) in keys.iter_mut().enumerate() {
+            *key = axis_key(rays.d[0][l], rays.d[1][l], rays.d[2][l]);
+        }
+        let mut left = lanes;
+        while left != 0 {
+            let first = left.trailing_zeros() as usize;
+            let key = keys[first];
+            if key == 0 {
+                let ray = rays.ray(first);
+                out[first] = alone(
+                    volume,
+                    skip,
+                    iso,
+                    &ray,
+                    rays.t0[first],
+                    rays.t1[first],
+                    None,
+                );
+                left &= !(1 << first);
+                continue;
+            }
+            let same = keys.map(|k| (k == key) as u32);
+            let group = left & lane_mask(isa, &same);
+            left &= !group;
+            let axis = ((key - 1) / 2) as usize;
+            let step = if (key - 1) % 2 == 1 { 1 } else { -1 };
+            walk_group(isa, volume, skip, fine, iso, rays, group, (axis, step), out);
+        }
+    }
+}
+
+/// A lane's packet group as a number: 0 for a ray along `(x, y, z)` that
+/// goes alone (a component zero or not finite), else `1 + 2·axis + s`
+/// from its major axis and `s = 1` along it, 0 against it
+/// ([`axis_of`]'s answer).
+#[inline(always)]
+fn axis_key(x: f32, y: f32, z: f32) -> u32 {
+    let (ax, ay, az) = (x.abs(), y.abs(), z.abs());
+    let k = if ax >= ay && ax >= az {
+        0
+    } else if ay >= az {
+        1
+    } else {
+        2
+    };
+    let along = if k == 0 {
+        x
+    } else if k == 1 {
+        y
+    } else {
+        z
+    };
+    let finite = x.is_finite() && y.is_finite() && z.is_finite();
+    if x == 0.0 || y == 0.0 || z == 0.0 || !finite {
+        0
+    } else {
+        1 + 2 * k as u32 + (along > 0.0) as u32
     }
 }
 
 /// The major axis of a ray along `d` and its step along it, `None` when a
 /// direction component is zero.
-#[inline]
+#[cfg(test)]
 fn axis_of(d: Vec3) -> Option<(usize, i32)> {
     if d.x == 0.0 || d.y == 0.0 || d.z == 0.0 || !d.is_finite() {
         return None;
@@ -304,7 +350,7 @@ fn walk_group<V: Volume, I: Isa>(
     skip: &SkipGrid,
     fine: &IsoCells,
     iso: f32,
-    rays: &PacketLanes,
+    rays: PacketRays<'_>,
     group: u32,
     (k, step): (usize, i32),
     out: &mut [PacketHit; PACKET],
@@ -315,9 +361,9 @@ fn walk_group<V: Volume, I: Isa>(
     let last_a = last.to_array();
     // Lanes outside the group cross nothing: an empty interval.
     let mut lanes = Lanes {
-        o: rays.o,
-        d: rays.d,
-        inv: rays.inv,
+        o: *rays.o,
+        d: *rays.d,
+        inv: *rays.inv,
         near: [[0.0; PACKET]; 3],
         far: [[0.0; PACKET]; 3],
         t0: [0.0; PACKET],
@@ -684,7 +730,7 @@ mod tests {
             for rays in random_packets(volume.grid(), &mut rng, 3000) {
                 let mut out = [PacketHit::default(); PACKET];
                 let (lanes, mask) = PacketLanes::of(&rays);
-                search_packet(volume, skip, fine, ISO, &lanes, mask, &mut out);
+                search_packet(volume, skip, fine, ISO, lanes.rays(), mask, &mut out);
                 for (l, r) in rays.iter().enumerate() {
                     // The scalar walk's hit, to the bit, in the same cell;
                     // except, rarely, by the rounding of the cell's entry:
@@ -716,7 +762,7 @@ mod tests {
                     // The same alone as in its packet.
                     let mut alone = [PacketHit::default(); PACKET];
                     let (lane, mask) = PacketLanes::of(std::slice::from_ref(r));
-                    search_packet(volume, skip, fine, ISO, &lane, mask, &mut alone);
+                    search_packet(volume, skip, fine, ISO, lane.rays(), mask, &mut alone);
                     assert_eq!(alone[0].hit, out[l].hit);
                     assert_eq!(alone[0].steps, out[l].steps);
                 }
@@ -737,5 +783,25 @@ mod tests {
     fn packets_find_the_scalar_walks_crossings_whatever_their_company() {
         let (volume, skip) = rippled_sphere();
         volume.visit(Check { skip: &skip });
+    }
+
+    /// A lane's group key says what `axis_of` says of its direction,
+    /// zero, infinite and NaN components included.
+    #[test]
+    fn group_keys_are_the_axes_of_the_directions() {
+        let mut rng = fastrand::Rng::with_seed(21);
+        let special = [0.0, -0.0, f32::INFINITY, f32::NAN, 1e-30, -2.5];
+        for _ in 0..100_000 {
+            let c = |rng: &mut fastrand::Rng| {
+                if rng.u32(0..6) == 0 {
+                    special[rng.usize(0..special.len())]
+                } else {
+                    rng.f32() * 2.0 - 1.0
+                }
+            };
+            let d = Vec3::new(c(&mut rng), c(&mut rng), c(&mut rng));
+            let want = axis_of(d).map_or(0, |(k, s)| 1 + 2 * k as u32 + (s > 0) as u32);
+            assert_eq!(axis_key(d.x, d.y, d.z), want, "{d}");
+        }
     }
 }
