@@ -2,13 +2,14 @@
 //! neighbouring pixels, lane by lane (a structure of arrays).
 //!
 //! The frame driver sets a block's rays up together in vector instructions
-//! ([`FrameJob::pixel_block`]) and a packet integrator (the exact iso mode)
-//! walks them together; both read and write the lanes where they are, so a
-//! ray is not gathered into a [`RaySegment`] and scattered back into lanes
-//! on its way from one to the other. Lane `l` is the pixel `(l % PACKET_W,
-//! l / PACKET_W)` of the block.
+//! (its `FrameJob::pixel_block`) and a packet integrator (the exact iso
+//! mode, [`Integrator::integrate_packet`]) walks them together; both read
+//! and write the lanes where they are, so a ray is not gathered into a
+//! [`RaySegment`] and scattered back into lanes on its way from one to the
+//! other. Lane `l` is the pixel `(l % PACKET_W, l / PACKET_W)` of the
+//! block.
 //!
-//! [`FrameJob::pixel_block`]: crate::render::FrameJob::pixel_block
+//! [`Integrator::integrate_packet`]: super::Integrator::integrate_packet
 
 use glam::Vec3;
 

@@ -97,19 +97,16 @@ impl<V: Volume> FrameJob<'_, V> {
 
     /// [`FrameJob::pixel_in`] for the [`PACKET_W`]×[`PACKET_H`] pixels
     /// from `(i0, j0)` (lane `l` is pixel `(i0 + l % PACKET_W, j0 + l /
-    /// PACKET_W)`), the same for every pixel, with the arithmetic of the
-    /// rays' set-up (directions, box intersection, voxel-space segment:
-    /// a dozen divisions and two square roots a ray) done for all the
-    /// block's rays at once in vector instructions, except that a ray the
-    /// proxy depths cull is `Culled(None)` (its segment not worked out:
-    /// the tile loop reads only whether it enters the box). `None` where
-    /// only the pixel-by-pixel way applies: an orthographic camera, a clip
-    /// region, a direction component of 0. The block must lie inside the
-    /// image.
-    ///
-    /// The rays go into `block`'s lanes, and its masks say which lanes are
-    /// searched and which culled. Returns false, leaving `block` as it
-    /// was, where only the pixel-by-pixel way applies.
+    /// PACKET_W)`), into `block`: the same for every pixel, with the
+    /// arithmetic of the rays' set-up (directions, box intersection,
+    /// voxel-space segment: a dozen divisions and two square roots a ray)
+    /// done for all the block's rays at once in vector instructions. The
+    /// masks say which lanes are searched (their segments set) and which
+    /// culled by the proxy depths (their segments not worked out: the tile
+    /// loop reads only whether they enter the box); a ray that misses is
+    /// in neither. Returns false, leaving `block` as it was, where only the
+    /// pixel-by-pixel way applies: an orthographic camera, a clip region, a
+    /// direction component of 0. The block must lie inside the image.
     #[inline]
     pub fn pixel_block(&self, i0: u32, j0: u32, all_enter: bool, block: &mut RayBlock) -> bool {
         if self.plan.camera.projection() != Projection::Perspective || self.plan.clip.is_some() {
@@ -124,8 +121,9 @@ impl<V: Volume> FrameJob<'_, V> {
         })
     }
 
-    /// The rays of the pixels of `rect` (at most a block's, from `(i0,
-    /// j0)`) into `block`, pixel by pixel ([`FrameJob::pixel_in`]).
+    /// The rays of the pixels of `rect` (at most a block's: lane `l` is the
+    /// pixel `(rect.x0 + l % PACKET_W, rect.y0 + l / PACKET_W)`) into
+    /// `block`, pixel by pixel ([`FrameJob::pixel_in`]).
     fn pixel_block_in(&self, rect: &PixelRect, all_enter: bool, block: &mut RayBlock) {
         block.searched = 0;
         block.culled = 0;
