@@ -237,7 +237,9 @@ impl<V: Volume> Kernel for PixelBlock<'_, '_, V> {
     }
 }
 
-/// The bit set of the lanes `v[l] != 0`.
+/// The bit set of the lanes `v[l] != 0`. (The packet walk's `lane_mask`,
+/// with the CPU's mask instruction, ran no faster here in the AVX-512 copy
+/// and 0.7 % more instructions per frame in the AVX2 one.)
 #[inline(always)]
 fn mask_of(v: &[u32; BLOCK]) -> u32 {
     v.iter()

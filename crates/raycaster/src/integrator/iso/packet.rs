@@ -306,7 +306,10 @@ fn alone<V: Volume>(
     }
 }
 
-/// The lanes of one packet group, structure of arrays.
+/// The lanes of one packet group, structure of arrays: the packet's rays
+/// copied out of their [`PacketRays`] (borrowed there, the walk's loops
+/// reloaded them and ran more instructions than the copy costs), with the
+/// group's own part of each to search.
 struct Lanes {
     o: [[f32; PACKET]; 3],
     d: [[f32; PACKET]; 3],
