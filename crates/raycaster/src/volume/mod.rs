@@ -101,8 +101,10 @@ pub trait Volume: Send + Sync {
 /// [`Volume::gradient`].
 #[derive(Debug, Clone, Copy)]
 pub struct GradientCache {
-    /// Per slot its cell's lower corner (`UVec3::MAX`, no cell's: empty).
-    cells: [UVec3; GRADIENT_CELLS],
+    /// Per slot its cell's index in the grid (`x + nx·(y + ny·z)`: one
+    /// compare a slot where the cell's three coordinates took three;
+    /// `u64::MAX`, no cell's: empty).
+    cells: [u64; GRADIENT_CELLS],
     gradients: [CornerGradients; GRADIENT_CELLS],
     /// The slot the next new cell takes (the oldest).
     next: usize,
@@ -114,7 +116,7 @@ pub const GRADIENT_CELLS: usize = 4;
 impl Default for GradientCache {
     fn default() -> Self {
         GradientCache {
-            cells: [UVec3::MAX; GRADIENT_CELLS],
+            cells: [u64::MAX; GRADIENT_CELLS],
             gradients: [[Vec4::ZERO; 8]; GRADIENT_CELLS],
             next: 0,
         }
@@ -127,12 +129,15 @@ impl GradientCache {
     #[inline(always)]
     pub fn gradient<V: Volume + ?Sized>(&mut self, volume: &V, p: Vec3) -> Vec3 {
         let at = volume.locate(p);
-        let slot = match self.cells.iter().position(|&c| c == at.cell) {
+        let dims = volume.grid().dims;
+        let key = at.cell.x as u64
+            + dims.x as u64 * (at.cell.y as u64 + dims.y as u64 * at.cell.z as u64);
+        let slot = match self.cells.iter().position(|&c| c == key) {
             Some(slot) => slot,
             None => {
                 let slot = self.next;
                 self.next = (slot + 1) % GRADIENT_CELLS;
-                self.cells[slot] = at.cell;
+                self.cells[slot] = key;
                 self.gradients[slot] =
                     corner_gradients(&volume.corners(at.cell), &volume.wings(at.cell));
                 slot
