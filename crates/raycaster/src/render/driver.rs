@@ -195,7 +195,7 @@ impl<V: Volume> Kernel for PixelBlock<'_, '_, V> {
         let i: [u32; BLOCK] = std::array::from_fn(|l| i0 + l as u32 % PACKET_W);
         let j: [u32; BLOCK] = std::array::from_fn(|l| j0 + l as u32 / PACKET_W);
         let start: [f32; BLOCK] = match &plan.proxy {
-            Some(p) => std::array::from_fn(|l| p.at(i[l], j[l])),
+            Some(p) => p.block_at(i0, j0),
             None => [f32::NEG_INFINITY; BLOCK],
         };
         // (A block whose rays are all culled in a rectangle known to enter
