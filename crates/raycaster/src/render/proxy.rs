@@ -183,19 +183,24 @@ impl ProxyDepth {
     pub fn block_at(&self, i0: u32, j0: u32) -> [f32; RAY_BLOCK] {
         let r = &self.rect;
         let inside = i0 >= r.x0 && j0 >= r.y0 && i0 + PACKET_W <= r.x1 && j0 + PACKET_H <= r.y1;
+        // Loops rather than `std::array::from_fn`, whose closures the
+        // compiler left out of line here.
+        let mut out = [0.0f32; RAY_BLOCK];
         if !inside {
-            return std::array::from_fn(|l| {
-                self.at(i0 + l as u32 % PACKET_W, j0 + l as u32 / PACKET_W)
-            });
+            for (l, t) in out.iter_mut().enumerate() {
+                *t = self.at(i0 + l as u32 % PACKET_W, j0 + l as u32 / PACKET_W);
+            }
+            return out;
         }
         let (x0, y0) = (i0 - r.x0, j0 - r.y0);
-        std::array::from_fn(|l| {
+        for (l, t) in out.iter_mut().enumerate() {
             let (x, y) = (
                 (x0 + l as u32 % PACKET_W) / BLOCK,
                 (y0 + l as u32 / PACKET_W) / BLOCK,
             );
-            self.depth[(y * self.width + x) as usize]
-        })
+            *t = self.depth[(y * self.width + x) as usize];
+        }
+        out
     }
 
     /// Whether no pixel ray of `r` meets a straddling cell: [`at`] is
