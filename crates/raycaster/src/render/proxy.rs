@@ -257,12 +257,11 @@ fn box_of(
 }
 
 /// The boxes of the runs of straddling cells `runs` seen by a perspective
-/// `frame` ([`ProxyDepth::build`]'s first pass): each box that shows in
-/// `rect`, as its rectangle of blocks and its depth. The arithmetic of
-/// `box_of` there (the box grown by [`MARGIN`], [`CameraFrame::box_rect`],
-/// [`nearest_t`]) done for [`RUN_LANES`] boxes at once, with the same
-/// results; a [`Kernel`] so that it is compiled 16 wide where the CPU
-/// has AVX-512.
+/// `frame` ([`ProxyDepth::build`]'s first pass): [`box_of`] of each, those
+/// that show. Its arithmetic (the grown box, [`CameraFrame::box_rect`],
+/// [`nearest_t`]) is done for [`RUN_LANES`] boxes at once, in the same
+/// order lane by lane, so the results are the same to the bit; a
+/// [`Kernel`] so that it is compiled 16 wide where the CPU has AVX-512.
 struct BoxRects<'a> {
     frame: &'a CameraFrame,
     rect: PixelRect,
