@@ -235,6 +235,17 @@ fn gather_avx2(table: &[f32], index: &[u32; LANES]) -> [f32; LANES] {
     unsafe { std::mem::transmute(_mm256_i32gather_ps::<4>(table.as_ptr(), index)) }
 }
 
+/// The bit set of the lanes `v[l] != 0`. (The packet walk's `lane_mask`,
+/// with the CPU's mask instruction, ran no faster where the frame driver
+/// sets up a block of rays in the AVX-512 copy, and 0.7 % more
+/// instructions per frame in the AVX2 one.)
+#[inline(always)]
+pub(crate) fn mask_of<const N: usize>(v: &[u32; N]) -> u32 {
+    v.iter()
+        .enumerate()
+        .fold(0, |m, (l, &x)| m | ((x != 0) as u32) << l)
+}
+
 /// The lanes set in `mask`, lowest first: one step per set bit (a loop
 /// over all lanes testing each bit mispredicts the test).
 #[inline(always)]

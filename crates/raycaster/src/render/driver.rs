@@ -21,7 +21,7 @@ use crate::integrator::{
     Span, jitter,
 };
 use crate::scene::Scene;
-use crate::simd::{self, Isa, Kernel, lanes_of};
+use crate::simd::{self, Isa, Kernel, lanes_of, mask_of};
 use crate::transfer::TransferFunction;
 use crate::volume::{Volume, VolumeVisitor};
 
@@ -235,16 +235,6 @@ impl<V: Volume> Kernel for PixelBlock<'_, '_, V> {
         }
         true
     }
-}
-
-/// The bit set of the lanes `v[l] != 0`. (The packet walk's `lane_mask`,
-/// with the CPU's mask instruction, ran no faster here in the AVX-512 copy
-/// and 0.7 % more instructions per frame in the AVX2 one.)
-#[inline(always)]
-fn mask_of(v: &[u32; BLOCK]) -> u32 {
-    v.iter()
-        .enumerate()
-        .fold(0, |m, (l, &x)| m | ((x != 0) as u32) << l)
 }
 
 /// What [`FrameJob::pixel`] found for a pixel's ray.

@@ -31,7 +31,7 @@ use super::shading::powi_lanes;
 use super::{BLOCK, Fragment, FrameContext, Integrator, Occupancy, RayBlock, Span, integrate_each};
 use crate::accel::{CellClass, CellMasks, IsoCells, SkipGrid};
 use crate::geometry::{Aabb, max_to, min_to};
-use crate::simd::{self, Isa, Kernel, lanes_of};
+use crate::simd::{self, Isa, Kernel, lanes_of, mask_of};
 use crate::volume::{Corners, GradientCache, Grid, Volume};
 
 /// How an isosurface's normal is found at a hit.
@@ -93,6 +93,16 @@ pub struct ShadingCache {
     /// The same for the surface reflection rays meet.
     reflected: GradientCache,
     shadow_rays: [Option<VoxelRay>; CACHED_LIGHTS],
+}
+
+impl ShadingCache {
+    /// The TF's colour at the frame's iso value, looked up once per tile.
+    #[inline(always)]
+    fn colour<V: Volume>(&mut self, ctx: &FrameContext<'_, V>) -> Vec3 {
+        *self
+            .colour
+            .get_or_insert_with(|| ctx.tf.evaluate(ctx.iso_value).truncate())
+    }
 }
 
 /// How many lights' shadow-ray directions a [`ShadingCache`] keeps.
@@ -165,7 +175,7 @@ impl Integrator for IsoState {
         for (l, e) in empty.iter_mut().enumerate() {
             *e = block.is_empty(l) as u32;
         }
-        let empty = empty.iter().enumerate().fold(0, |m, (l, &e)| m | e << l);
+        let empty = mask_of(&empty);
         let rays_in = packet::PacketRays {
             o: &block.origin,
             d: &block.dir,
@@ -298,9 +308,7 @@ impl<V: Volume> Kernel for ResolvePacket<'_, '_, V> {
         // Unshaded and without reflection: the TF's colour at the iso
         // value (what `shade` gives without a normal).
         if ctx.shading.is_none() && ctx.reflection <= 0.0 {
-            let c = *cache
-                .colour
-                .get_or_insert_with(|| ctx.tf.evaluate(ctx.iso_value).truncate());
+            let c = cache.colour(ctx);
             for l in lanes_of(hits) {
                 out[l] = c.extend(1.0);
             }
@@ -354,9 +362,7 @@ impl<V: Volume> Kernel for ResolvePacket<'_, '_, V> {
             }
             None => ShadowMasks::default(),
         };
-        let c = *cache
-            .colour
-            .get_or_insert_with(|| ctx.tf.evaluate(ctx.iso_value).truncate());
+        let c = cache.colour(ctx);
         let rgb = lit_lanes(ctx, c, &normals, &view, casts.then_some(&masks));
         for l in lanes_of(hits) {
             out[l] = rgb[l].extend(1.0);
@@ -381,9 +387,7 @@ fn shade<V: Volume>(
     known: Option<(&ShadowMasks, usize)>,
     cache: &mut ShadingCache,
 ) -> Vec4 {
-    let c = *cache
-        .colour
-        .get_or_insert_with(|| ctx.tf.evaluate(ctx.iso_value).truncate());
+    let c = cache.colour(ctx);
     let mut rgb = lit(ctx, c, hit, n, known, &mut cache.shadow_rays);
     if ctx.reflection > 0.0
         && let Some(n) = n
