@@ -6,7 +6,7 @@
 
 use std::time::{Duration, Instant};
 
-use glam::Vec3;
+use glam::{DVec3, Vec3};
 use rayon::prelude::*;
 
 use super::balls::Balls;
@@ -20,6 +20,7 @@ use crate::geometry::Ray;
 use crate::integrator::Phong;
 use crate::render::film::{Film, RayCounts};
 use crate::render::{Frame, FrameStats, RendererKind};
+use crate::simd::{self, Isa};
 use crate::transfer::TransferFunction;
 
 /// How metaballs are drawn.
@@ -301,8 +302,6 @@ struct TileJob<'a> {
 fn render_tile(job: &TileJob<'_>, (tx, ty): (u32, u32)) -> u64 {
     let rect: PixelRect = job.lists.rect(tx, ty);
     let cands = job.lists.candidates(tx, ty);
-    let mut scratch = Scratch::default();
-    let mut shadow_scratch = ShadowScratch::default();
     let mut tile = Vec::new();
     // Perspective rays all start at the eye: the candidates are kept
     // relative to it.
@@ -315,40 +314,82 @@ fn render_tile(job: &TileJob<'_>, (tx, ty): (u32, u32)) -> u64 {
         eye,
         TIGHTEN_DEPTH * job.params.scale,
     );
-    let mut rgb = Vec::with_capacity(3 * rect.area() as usize);
-    let mut met = 0;
-    let mut counts = RayCounts::default();
-    for j in rect.y0..rect.y1 {
-        for i in rect.x0..rect.x1 {
-            let r = job.frame.ray(i, j);
-            let res = ray::first_hit_tile(job.params, &r, &tile, eye, &mut scratch);
-            met += res.met as u64;
-            let px = match res.t {
-                Some(t) => {
-                    let c = ray::shade(job.params, &r, t, &scratch, |x, n, l| {
-                        job.shadows.is_some_and(|(grid, params)| {
-                            let origin = x + n.as_dvec3() * job.offset;
-                            let shadow = Ray {
-                                origin: origin.as_vec3(),
-                                dir: l,
-                            };
-                            grid.blocked(params, &shadow, &mut shadow_scratch)
-                        })
-                    });
-                    counts.add(c);
-                    job.film.composite(c)
-                }
-                None => {
-                    if res.met > 0 {
-                        counts.add(glam::Vec4::ZERO);
-                    }
-                    job.film.background_rgb()
-                }
-            };
-            rgb.extend_from_slice(&px);
-        }
-    }
+    let (rgb, met, counts) = simd::dispatch(TileRays {
+        job,
+        rect,
+        tile: &tile,
+        eye,
+    });
     job.film.add_counts(counts);
     job.film.put_tile(&rect, &rgb);
     met
+}
+
+/// The rays of one tile, compiled for the best instruction set of the CPU
+/// (a [`simd::Kernel::WIDE`] loop), so that the candidates' tests against
+/// a ray's line ([`ray::CandColumns`]) run in vector lanes.
+struct TileRays<'a, 'b> {
+    job: &'a TileJob<'b>,
+    rect: PixelRect,
+    tile: &'a [ray::Cand],
+    eye: DVec3,
+}
+
+impl simd::Kernel for TileRays<'_, '_> {
+    type Output = (Vec<u8>, u64, RayCounts);
+    const WIDE: bool = true;
+
+    #[inline(always)]
+    fn run<I: Isa>(self, _isa: I) -> Self::Output {
+        let TileRays {
+            job,
+            rect,
+            tile,
+            eye,
+        } = self;
+        let mut rgb = Vec::with_capacity(3 * rect.area() as usize);
+        let mut met = 0;
+        let mut counts = RayCounts::default();
+        let mut shadow_scratch = ShadowScratch::default();
+        {
+            let mut pixel = |r: &Ray, res: ray::RayResult, active: &[u32]| {
+                met += res.met as u64;
+                let px = match res.t {
+                    Some(t) => {
+                        let c = ray::shade(job.params, r, t, active, |x, n, l| {
+                            job.shadows.is_some_and(|(grid, params)| {
+                                let origin = x + n.as_dvec3() * job.offset;
+                                let shadow = Ray {
+                                    origin: origin.as_vec3(),
+                                    dir: l,
+                                };
+                                grid.blocked(params, &shadow, &mut shadow_scratch)
+                            })
+                        });
+                        counts.add(c);
+                        job.film.composite(c)
+                    }
+                    None => {
+                        if res.met > 0 {
+                            counts.add(glam::Vec4::ZERO);
+                        }
+                        job.film.background_rgb()
+                    }
+                };
+                rgb.extend_from_slice(&px);
+            };
+            let mut scratch = Scratch::default();
+            let mut columns = ray::CandColumns::default();
+            columns.fill(tile);
+            for j in rect.y0..rect.y1 {
+                for i in rect.x0..rect.x1 {
+                    let r = job.frame.ray(i, j);
+                    let res =
+                        ray::first_hit_columns(job.params, &r, tile, &columns, eye, &mut scratch);
+                    pixel(&r, res, scratch.active());
+                }
+            }
+        }
+        (rgb, met, counts)
+    }
 }
