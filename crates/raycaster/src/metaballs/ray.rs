@@ -169,8 +169,11 @@ impl Chunk {
             let h2 = oc2[l] - b * b;
             self.b[l] = b;
             self.h2[l] = h2;
-            // As the sweep's `h2 >= R²` test rejects: a NaN is kept.
-            mask |= ((h2 < r2[l] || h2.is_nan()) as u32) << l;
+            // Kept unless the sweep's own test `h2 >= R²` rejects it (a NaN
+            // is kept), in one vector compare.
+            #[allow(clippy::neg_cmp_op_on_partial_ord)]
+            let meets = !(h2 >= r2[l]);
+            mask |= (meets as u32) << l;
         }
         mask & ((1u32 << n) - 1)
     }
