@@ -350,13 +350,18 @@ impl simd::Kernel for TileRays<'_, '_> {
         let mut rgb = Vec::with_capacity(3 * rect.area() as usize);
         let mut met = 0;
         let mut counts = RayCounts::default();
+        let mut scratch = Scratch::default();
         let mut shadow_scratch = ShadowScratch::default();
-        {
-            let mut pixel = |r: &Ray, res: ray::RayResult, active: &[u32]| {
+        let mut columns = ray::CandColumns::default();
+        columns.fill(tile);
+        for j in rect.y0..rect.y1 {
+            for i in rect.x0..rect.x1 {
+                let r = job.frame.ray(i, j);
+                let res = ray::first_hit_columns(job.params, &r, tile, &columns, eye, &mut scratch);
                 met += res.met as u64;
                 let px = match res.t {
                     Some(t) => {
-                        let c = ray::shade(job.params, r, t, active, |x, n, l| {
+                        let c = ray::shade(job.params, &r, t, scratch.active(), |x, n, l| {
                             job.shadows.is_some_and(|(grid, params)| {
                                 let origin = x + n.as_dvec3() * job.offset;
                                 let shadow = Ray {
@@ -377,17 +382,6 @@ impl simd::Kernel for TileRays<'_, '_> {
                     }
                 };
                 rgb.extend_from_slice(&px);
-            };
-            let mut scratch = Scratch::default();
-            let mut columns = ray::CandColumns::default();
-            columns.fill(tile);
-            for j in rect.y0..rect.y1 {
-                for i in rect.x0..rect.x1 {
-                    let r = job.frame.ray(i, j);
-                    let res =
-                        ray::first_hit_columns(job.params, &r, tile, &columns, eye, &mut scratch);
-                    pixel(&r, res, scratch.active());
-                }
             }
         }
         (rgb, met, counts)
