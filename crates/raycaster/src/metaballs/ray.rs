@@ -191,11 +191,9 @@ impl ChunkSource for [Cand] {
     fn columns(&self, base: usize, n: usize) -> [[f64; CHUNK]; 5] {
         let mut out = [[0.0f64; CHUNK]; 5];
         for (l, c) in self[base..base + n].iter().enumerate() {
-            out[0][l] = c.oc.x;
-            out[1][l] = c.oc.y;
-            out[2][l] = c.oc.z;
-            out[3][l] = c.oc2;
-            out[4][l] = c.r2;
+            for (col, v) in out.iter_mut().zip(c.test_values()) {
+                col[l] = v;
+            }
         }
         out
     }
@@ -212,18 +210,11 @@ pub struct CandColumns {
 impl CandColumns {
     /// The columns of `cands`.
     pub fn fill(&mut self, cands: &[Cand]) {
-        // A chunk may start at any candidate.
-        let padded = cands.len() + CHUNK;
         for (k, col) in self.cols.iter_mut().enumerate() {
             col.clear();
-            col.extend(cands.iter().map(|c| match k {
-                0 => c.oc.x,
-                1 => c.oc.y,
-                2 => c.oc.z,
-                3 => c.oc2,
-                _ => c.r2,
-            }));
-            col.resize(padded, 0.0);
+            col.extend(cands.iter().map(|c| c.test_values()[k]));
+            // A chunk may start at any candidate.
+            col.resize(cands.len() + CHUNK, 0.0);
         }
     }
 }
@@ -284,6 +275,12 @@ impl Cand {
     /// No ray enters the ball before this.
     pub fn t_lo(&self) -> f64 {
         self.t_lo
+    }
+
+    /// What [`Chunk::test`] reads: `oc` per axis, `|oc|²`, `R²`.
+    #[inline(always)]
+    fn test_values(&self) -> [f64; 5] {
+        [self.oc.x, self.oc.y, self.oc.z, self.oc2, self.r2]
     }
 }
 
@@ -478,7 +475,6 @@ pub fn first_hit(p: &RayParams<'_>, ray: &Ray, candidates: &[u32], s: &mut Scrat
 
 /// [`first_hit`] for a tile's candidates made by [`tile_cands`] (or
 /// [`Cand::new`]) for rays from `origin`: fastest for a ray from there.
-#[inline(always)]
 pub fn first_hit_tile(
     p: &RayParams<'_>,
     ray: &Ray,
@@ -486,10 +482,7 @@ pub fn first_hit_tile(
     origin: DVec3,
     s: &mut Scratch,
 ) -> RayResult {
-    match p.kernel {
-        Kernel::Wyvill => first_hit_n::<6, true>(p, ray, candidates, candidates, origin, s),
-        Kernel::Murakami => first_hit_n::<4, true>(p, ray, candidates, candidates, origin, s),
-    }
+    first_hit_from(p, ray, candidates, candidates, origin, s)
 }
 
 /// [`first_hit_tile`] with the candidates' [`CandColumns`] as well (made
@@ -500,6 +493,20 @@ pub fn first_hit_columns(
     ray: &Ray,
     candidates: &[Cand],
     columns: &CandColumns,
+    origin: DVec3,
+    s: &mut Scratch,
+) -> RayResult {
+    first_hit_from(p, ray, candidates, columns, origin, s)
+}
+
+/// [`first_hit_tile`] with the candidates' line tests read from `columns`:
+/// the one dispatch on the kernel.
+#[inline(always)]
+fn first_hit_from(
+    p: &RayParams<'_>,
+    ray: &Ray,
+    candidates: &[Cand],
+    columns: &(impl ChunkSource + ?Sized),
     origin: DVec3,
     s: &mut Scratch,
 ) -> RayResult {
