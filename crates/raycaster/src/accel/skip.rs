@@ -77,7 +77,16 @@ pub struct SkipGrid {
     /// For an iso value, the fine level: which interpolation cells of the
     /// occupied macrocells straddle it.
     iso_cells: Option<IsoCells>,
+    /// The occupied cells as runs along z ([`SkipGrid::occupied_runs`]),
+    /// listed on first use.
+    runs: OnceLock<Vec<(UVec3, u32)>>,
 }
+
+/// The most cells in one of [`SkipGrid::occupied_runs`]: a run is one box
+/// to the proxy depths, which bound every ray meeting it by the box's
+/// nearest point, so a long box starts the rays that meet its far end
+/// early.
+const MAX_RUN: u32 = 4;
 
 impl SkipGrid {
     /// Marks the cells for which `occupied(min, max)` holds and computes the
@@ -155,6 +164,7 @@ impl SkipGrid {
             distance,
             ahead: Default::default(),
             iso_cells: None,
+            runs: OnceLock::new(),
         }
     }
 
@@ -198,6 +208,53 @@ impl SkipGrid {
     /// Cells per axis.
     pub fn count(&self) -> UVec3 {
         self.count
+    }
+
+    /// The occupied cells as runs along z: the first cell of each run and
+    /// how many cells it holds (consecutive along z in one row, at most
+    /// [`MAX_RUN`]), row by row in index order; listed on first use, then
+    /// kept. The proxy depths of a DVR frame draw them as boxes.
+    pub fn occupied_runs(&self) -> &[(UVec3, u32)] {
+        self.runs.get_or_init(|| self.list_occupied_runs())
+    }
+
+    fn list_occupied_runs(&self) -> Vec<(UVec3, u32)> {
+        let (ny, nz) = (self.count.y as usize, self.count.z as usize);
+        let cell = |i: usize| {
+            UVec3::new(
+                (i / (ny * nz)) as u32,
+                (i / nz % ny) as u32,
+                (i % nz) as u32,
+            )
+        };
+        let mut out: Vec<(UVec3, u32)> = Vec::new();
+        // The run being gathered: its first cell's index and length.
+        let mut run: Option<(usize, u32)> = None;
+        for (w, &word) in self.occupied.iter().enumerate() {
+            let mut bits = word;
+            while bits != 0 {
+                let i = w * 64 + bits.trailing_zeros() as usize;
+                bits &= bits - 1;
+                run = match run {
+                    // The next cell along z in the same row.
+                    Some((first, len))
+                        if i == first + len as usize && !i.is_multiple_of(nz) && len < MAX_RUN =>
+                    {
+                        Some((first, len + 1))
+                    }
+                    _ => {
+                        if let Some((first, len)) = run {
+                            out.push((cell(first), len));
+                        }
+                        Some((i, 1))
+                    }
+                };
+            }
+        }
+        if let Some((first, len)) = run {
+            out.push((cell(first), len));
+        }
+        out
     }
 
     /// Number of occupied cells.
@@ -601,6 +658,43 @@ mod tests {
             }
             if n < 64 {
                 assert_eq!(word >> n, 0, "bits past {n}");
+            }
+        }
+    }
+
+    /// The occupied runs hold every occupied cell once and nothing else,
+    /// each run consecutive along z in one row and at most `MAX_RUN` long,
+    /// and neighbouring runs are not left unmerged below that length.
+    #[test]
+    fn occupied_runs_hold_each_occupied_cell_once() {
+        let mut rng = fastrand::Rng::with_seed(5);
+        for density in [0.0, 0.03, 0.3, 0.9, 1.0] {
+            for _ in 0..10 {
+                let count = UVec3::new(rng.u32(1..9), rng.u32(1..9), rng.u32(1..70));
+                let cells = crate::accel::random_macrocells(&mut rng, count, density);
+                let skip = SkipGrid::build(&cells, |_, hi| hi > 0.5);
+                let runs = skip.occupied_runs();
+                let mut seen = vec![0u32; cells.ranges.len()];
+                for (k, &(c, len)) in runs.iter().enumerate() {
+                    assert!((1..=MAX_RUN).contains(&len), "{count} run {c} of {len}");
+                    assert!(c.z + len <= count.z, "{count} run {c} of {len}");
+                    for z in c.z..c.z + len {
+                        seen[skip.index(UVec3::new(c.x, c.y, z))] += 1;
+                    }
+                    // Runs follow in index order; one that ends short of
+                    // `MAX_RUN` ends at an empty cell or the row's end.
+                    if let Some(&(next, _)) = runs.get(k + 1) {
+                        assert!(skip.index(next) >= skip.index(c) + len as usize);
+                    }
+                    let end = UVec3::new(c.x, c.y, c.z + len);
+                    if len < MAX_RUN && end.z < count.z {
+                        assert!(!skip.is_occupied(end), "{count} run {c} of {len}");
+                    }
+                }
+                for (i, &n) in seen.iter().enumerate() {
+                    assert_eq!(n, skip.is_occupied_index(i) as u32, "{count} cell {i}");
+                }
+                assert_eq!(runs.is_empty(), skip.occupied_count() == 0);
             }
         }
     }

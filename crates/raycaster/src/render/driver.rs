@@ -90,7 +90,12 @@ impl<V: Volume> FrameJob<'_, V> {
             return PixelRay::Misses;
         };
         if let Some(t) = start {
-            seg.t_in = seg.t_in.max(t);
+            if self.plan.proxy_moves_samples {
+                // At most one sample early, never late.
+                seg.first = seg.first.max(seg.first_index_at_or_after(t).min(seg.count));
+            } else {
+                seg.t_in = seg.t_in.max(t);
+            }
         }
         PixelRay::Searched(seg)
     }

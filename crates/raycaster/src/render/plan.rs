@@ -6,7 +6,7 @@
 
 use std::sync::Arc;
 
-use super::proxy::{LightProxy, ProxyDepth};
+use super::proxy::{CellRuns, LightProxy, ProxyDepth};
 use crate::accel::{IsoCells, SkipGrid};
 use crate::camera::{Camera, CameraFrame, PixelRect};
 use crate::clip::ClipRegion;
@@ -226,10 +226,18 @@ pub struct FramePlan {
     pub clip: Option<ClipRegion>,
     /// The jitter seed when samples are jittered.
     pub jitter: Option<u32>,
-    /// In exact iso mode with empty-space skipping: where each pixel's ray
-    /// first meets a cell that can hold the surface (its walk starts
-    /// there; a pixel it calls empty cannot hit).
+    /// With empty-space skipping in exact iso mode and DVR: where each
+    /// pixel's ray first meets a cell that can hold the surface or that
+    /// the TF makes visible (its walk starts there; a pixel it calls empty
+    /// meets none).
     pub proxy: Option<ProxyDepth>,
+    /// What the proxy depths move: the start of the iso search
+    /// ([`RaySegment::t_in`]) or, in DVR, the first sample kept
+    /// ([`RaySegment::first`]), so that the samples stay where they are.
+    ///
+    /// [`RaySegment::t_in`]: crate::integrator::RaySegment::t_in
+    /// [`RaySegment::first`]: crate::integrator::RaySegment::first
+    pub proxy_moves_samples: bool,
     /// With shadows in exact iso mode with empty-space skipping: per light
     /// (in the order of [`FramePlan::lights`]), how far its shadow rays
     /// can meet a cell that can hold the surface (`None`: the whole way).
@@ -307,6 +315,7 @@ impl FramePlan {
         let prepared = cache.get(scene, tf, step, options, clip.as_ref());
         Ok(FramePlan {
             proxy: None,
+            proxy_moves_samples: false,
             light_proxies: Vec::new(),
             clip,
             jitter: (options.jitter && options.mode != crate::integrator::RenderMode::Iso)
@@ -328,17 +337,31 @@ impl FramePlan {
     /// and the surface only, not on the camera: it is kept in `cache` for
     /// the next frames.
     pub fn draw_proxy(&mut self, cache: &mut PlanCache, scene: &Scene, options: &RenderOptions) {
+        use crate::integrator::RenderMode;
         self.proxy = None;
+        self.proxy_moves_samples = false;
         self.light_proxies = Vec::new();
-        let Some(cells) = self.prepared.1.iso_cells() else {
-            return;
-        };
-        if !(options.ess && options.mode == crate::integrator::RenderMode::Iso) {
+        let grid = scene.grid();
+        let skip = &self.prepared.1;
+        if options.ess && options.mode == RenderMode::Dvr {
+            // The macrocells the TF makes visible: a sample before the
+            // nearest of them along its ray lies in an empty one.
+            if ProxyDepth::pays(skip.occupied_count(), &self.rect) {
+                let runs = CellRuns::occupied(skip);
+                self.proxy = Some(ProxyDepth::build(&self.camera, self.rect, grid, runs));
+                self.proxy_moves_samples = true;
+            }
             return;
         }
-        let grid = scene.grid();
-        if ProxyDepth::pays(cells, &self.rect) {
-            self.proxy = Some(ProxyDepth::build(&self.camera, self.rect, grid, cells));
+        let Some(cells) = skip.iso_cells() else {
+            return;
+        };
+        if !(options.ess && options.mode == RenderMode::Iso) {
+            return;
+        }
+        if ProxyDepth::pays(cells.straddling_count(), &self.rect) {
+            let runs = CellRuns::straddling(cells);
+            self.proxy = Some(ProxyDepth::build(&self.camera, self.rect, grid, runs));
         }
         if options.shadows && options.shading {
             self.light_proxies = self

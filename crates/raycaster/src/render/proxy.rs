@@ -39,7 +39,7 @@ use glam::{UVec3, Vec3};
 use parking_lot::Mutex;
 
 use super::bins::Bins;
-use crate::accel::IsoCells;
+use crate::accel::{IsoCells, SkipGrid};
 use crate::camera::{AffineProjection, Camera, CameraFrame, PixelRect, Projection};
 use crate::integrator::{BLOCK as RAY_BLOCK, PACKET_H, PACKET_W};
 use crate::simd::{self, Isa, Kernel};
@@ -85,14 +85,15 @@ impl ProxyDepth {
     /// has pixels (a fine surface in a small preview, or a huge volume),
     /// where listing and drawing them would cost more than the walks they
     /// shorten, and the list alone could take much memory.
-    pub fn pays(cells: &IsoCells, rect: &PixelRect) -> bool {
-        let n = cells.straddling_count() as u64;
+    /// `cells` is how many cells there are to draw.
+    pub fn pays(cells: usize, rect: &PixelRect) -> bool {
+        let n = cells as u64;
         n <= MAX_BOXES && n <= BOXES_PER_PIXEL * rect.area()
     }
 
-    /// Draws the straddling cells of `cells` (a grid `grid`) as seen by
-    /// `frame`, over the pixels of `rect`.
-    pub fn build(frame: &CameraFrame, rect: PixelRect, grid: &Grid, cells: &IsoCells) -> Self {
+    /// Draws the boxes of `runs` (on a grid `grid`) as seen by `frame`,
+    /// over the pixels of `rect`.
+    pub fn build(frame: &CameraFrame, rect: PixelRect, grid: &Grid, runs: CellRuns<'_>) -> Self {
         // The buffer's blocks of BLOCK×BLOCK pixels over `rect`.
         let (w, h) = (
             (rect.x1 - rect.x0).div_ceil(BLOCK),
@@ -107,7 +108,7 @@ impl ProxyDepth {
                 boxes: 0,
             };
         }
-        let runs = cells.straddling_runs();
+        let CellRuns { runs, side } = runs;
         // Pieces of the work (a few per thread, taken in turn: a thread
         // that starts late takes fewer).
         let parts = rayon::current_num_threads().max(1);
@@ -119,11 +120,11 @@ impl ProxyDepth {
                     frame,
                     rect,
                     grid,
-                    runs: piece,
+                    runs: CellRuns { runs: piece, side },
                 }),
                 Projection::Orthographic => piece
                     .iter()
-                    .filter_map(|run| box_of(frame, &rect, grid, run))
+                    .filter_map(|run| box_of(frame, &rect, grid, run, side))
                     .collect::<Vec<_>>(),
             })
             .concat();
@@ -235,6 +236,34 @@ impl ProxyDepth {
     }
 }
 
+/// Cells to draw as boxes, in runs along z: each run's first cell (in
+/// units of `side` voxels) and how many cells it holds.
+#[derive(Debug, Clone, Copy)]
+pub struct CellRuns<'a> {
+    /// Each run's first cell and length.
+    pub runs: &'a [(UVec3, u32)],
+    /// A cell's side, voxels.
+    pub side: f32,
+}
+
+impl<'a> CellRuns<'a> {
+    /// The interpolation cells that straddle an iso value (exact iso mode).
+    pub fn straddling(cells: &'a IsoCells) -> Self {
+        CellRuns {
+            runs: cells.straddling_runs(),
+            side: 1.0,
+        }
+    }
+
+    /// The macrocells a transfer function makes visible (DVR).
+    pub fn occupied(skip: &'a SkipGrid) -> Self {
+        CellRuns {
+            runs: skip.occupied_runs(),
+            side: skip.cell_side(),
+        }
+    }
+}
+
 /// The box of a run of straddling cells along z (`(first cell, length)`),
 /// grown by [`MARGIN`], as `frame` sees it in `rect`: its blocks (those
 /// its pixels' rectangle touches) and its depth (a lower bound on where
@@ -244,11 +273,12 @@ fn box_of(
     rect: &PixelRect,
     grid: &Grid,
     &(c, len): &(UVec3, u32),
+    side: f32,
 ) -> Option<(PixelRect, f32)> {
     let c = c.as_vec3();
     let grow = Vec3::splat(MARGIN);
-    let lo = grid.voxel_to_world(c - grow);
-    let hi = grid.voxel_to_world(c + Vec3::new(1.0, 1.0, len as f32) + grow);
+    let lo = grid.voxel_to_world(c * side - grow);
+    let hi = grid.voxel_to_world((c + Vec3::new(1.0, 1.0, len as f32)) * side + grow);
     let r = frame.box_rect(lo, hi)?.intersect(rect);
     if r.is_empty() {
         return None;
@@ -266,7 +296,7 @@ struct BoxRects<'a> {
     frame: &'a CameraFrame,
     rect: PixelRect,
     grid: &'a Grid,
-    runs: &'a [(UVec3, u32)],
+    runs: CellRuns<'a>,
 }
 
 /// Boxes per lane-wise step of [`BoxRects`].
@@ -283,7 +313,7 @@ impl Kernel for BoxRects<'_> {
             frame,
             rect,
             grid,
-            runs,
+            runs: CellRuns { runs, side },
         } = self;
         let (origin, spacing) = (grid.origin, grid.spacing);
         let eye = frame.position();
@@ -297,8 +327,8 @@ impl Kernel for BoxRects<'_> {
                 let c = c.as_vec3();
                 let ext = [1.0, 1.0, len as f32];
                 for a in 0..3 {
-                    lo[a][l] = origin[a] + (c[a] - MARGIN) * spacing[a];
-                    hi[a][l] = origin[a] + ((c[a] + ext[a]) + MARGIN) * spacing[a];
+                    lo[a][l] = origin[a] + (c[a] * side - MARGIN) * spacing[a];
+                    hi[a][l] = origin[a] + ((c[a] + ext[a]) * side + MARGIN) * spacing[a];
                 }
             }
             let r = frame.box_rects(&lo, &hi);
@@ -439,11 +469,11 @@ impl LightProxy {
         }
         let frame = camera.frame()?;
         let rect = frame.full_rect();
-        if !ProxyDepth::pays(cells, &rect) {
+        if !ProxyDepth::pays(cells.straddling_count(), &rect) {
             return None;
         }
         let to_view = frame.affine_projection()?;
-        let depth = ProxyDepth::build(&frame, rect, grid, cells);
+        let depth = ProxyDepth::build(&frame, rect, grid, CellRuns::straddling(cells));
         Some(LightProxy { depth, to_view })
     }
 
@@ -571,6 +601,82 @@ mod tests {
         }
     }
 
+    /// DVR's proxy, drawn from the macrocells a TF makes visible (a ball,
+    /// macrocells of 4 voxels, runs along z): before each pixel's first
+    /// kept sample, moved as the frame driver moves it, lie only samples
+    /// in empty macrocells, for both projections and eyes outside the
+    /// grid, inside it in empty space and inside the ball; and it pays:
+    /// rays missing the ball are culled, others start past samples.
+    #[test]
+    fn dvr_depths_leave_only_empty_cells_before_the_first_sample() {
+        use crate::integrator::RaySegment;
+        let grid = Grid::new(UVec3::new(37, 30, 41), Vec3::new(1.0, 0.8, 1.2));
+        let centre = Vec3::new(20.0, 14.0, 22.0);
+        let volume = AnyVolume::from_fn(grid, |v| (v.as_vec3() - centre).length() * 10.0);
+        let macrocells = MacrocellGrid::build_any(&volume, 4, None);
+        // Visible within 7 voxels of the centre.
+        let skip = SkipGrid::build(&macrocells, |lo, _| lo < 70.0);
+        let runs = CellRuns::occupied(&skip);
+        assert_eq!(runs.side, 4.0);
+        assert!(runs.runs.len() > 5 && skip.occupied_count() > runs.runs.len());
+        let world = |v: Vec3| grid.voxel_to_world(v);
+        for (eye, projection, outside) in [
+            (Vec3::new(70.0, 45.0, -30.0), Projection::Perspective, true),
+            (Vec3::new(70.0, 45.0, -30.0), Projection::Orthographic, true),
+            (
+                world(Vec3::new(3.0, 3.0, 3.0)),
+                Projection::Perspective,
+                false,
+            ),
+            (
+                world(centre + Vec3::new(0.5, 0.3, 0.2)),
+                Projection::Perspective,
+                false,
+            ),
+        ] {
+            let look = if outside {
+                world(centre)
+            } else {
+                eye + Vec3::new(1.0, 0.6, 0.8)
+            };
+            let mut cam = Camera::look_at(eye, look, 48, 40);
+            cam.projection = projection;
+            cam.fov_y_deg = 70.0;
+            let frame = cam.frame().unwrap();
+            let rect = frame.screen_rect(&grid.bounds());
+            let proxy = ProxyDepth::build(&frame, rect, &grid, runs);
+            let (mut culled, mut reached, mut passed) = (0, 0, 0);
+            for j in 0..40 {
+                for i in 0..48 {
+                    let ray = frame.ray(i, j);
+                    let Some(seg) = RaySegment::new(&grid, &ray, 0.3) else {
+                        continue;
+                    };
+                    let t = proxy.at(i, j);
+                    let first = seg.first_index_at_or_after(t).min(seg.count);
+                    let occupied = |k: u32| skip.is_occupied(skip.locate(seg.pos(k)).0);
+                    for k in 0..first {
+                        assert!(
+                            !occupied(k),
+                            "{eye} {projection:?} pixel {i},{j} sample {k}"
+                        );
+                    }
+                    culled += t.is_infinite() as u32;
+                    reached += (first..seg.count).any(occupied) as u32;
+                    passed += first;
+                }
+            }
+            assert!(reached > 30, "{eye} {projection:?}: {reached}");
+            // Inside the ball every ray starts in an occupied cell.
+            let in_ball = (grid.world_to_voxel(eye) - centre).length() < 1.0;
+            let enough = if in_ball { passed == 0 } else { passed > 1000 };
+            assert!(enough, "{eye} {projection:?}: {passed}");
+            if outside {
+                assert!(culled > 50, "{eye} {projection:?}: {culled}");
+            }
+        }
+    }
+
     /// Every pixel's depth is at or before the nearest entry into a
     /// straddling cell's box (found here by brute force), finite wherever
     /// a ray enters one, for both projections; and some rays that enter
@@ -591,7 +697,7 @@ mod tests {
             cam.projection = projection;
             let frame = cam.frame().unwrap();
             let rect = frame.screen_rect(&grid.bounds());
-            let proxy = ProxyDepth::build(&frame, rect, &grid, cells);
+            let proxy = ProxyDepth::build(&frame, rect, &grid, CellRuns::straddling(cells));
             assert_eq!(proxy.boxes(), cells.straddling_runs().len());
             assert!(proxy.boxes() < boxes.len());
             let (mut covered, mut culled) = (0, 0);
@@ -673,13 +779,16 @@ mod tests {
                 let some = &runs[..n];
                 let want: Vec<_> = some
                     .iter()
-                    .filter_map(|run| box_of(&frame, &rect, &grid, run))
+                    .filter_map(|run| box_of(&frame, &rect, &grid, run, 1.0))
                     .collect();
                 let got = simd::dispatch(BoxRects {
                     frame: &frame,
                     rect,
                     grid: &grid,
-                    runs: some,
+                    runs: CellRuns {
+                        runs: some,
+                        side: 1.0,
+                    },
                 });
                 assert_eq!(got.len(), want.len(), "{eye} {n}");
                 for (g, w) in got.iter().zip(&want) {

@@ -91,7 +91,9 @@ impl<V: Volume, I: Integrator> Shared<'_, V, I> {
             for j in t.y0..t.y1 {
                 for i in t.x0..t.x1 {
                     let seg = self.job.segment(i, j);
-                    buf.live += seg.is_some() as u32;
+                    // A ray without samples (culled by the proxy depths,
+                    // or clipped away) is never live.
+                    buf.live += seg.is_some_and(|s| !s.is_empty()) as u32;
                     buf.segs.push(seg);
                 }
             }
@@ -114,7 +116,7 @@ impl<V: Volume, I: Integrator> Shared<'_, V, I> {
                 let p = row + (i - t.x0) as usize;
                 let Some(seg) = &buf.segs[p] else { continue };
                 let state = &mut buf.states[p];
-                if state.is_done() {
+                if state.is_done() || seg.is_empty() {
                     continue;
                 }
                 let (k0, k1) = sample_range(seg, &brick.region);
