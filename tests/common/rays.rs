@@ -6,7 +6,8 @@ use glam::Vec4;
 use raycaster::accel::SkipGrid;
 use raycaster::geometry::Ray;
 use raycaster::integrator::{
-    DvrState, FrameContext, Integrator, IsoState, MipState, Phong, RaySegment, ShadingCache, Span,
+    DvrState, FrameContext, Integrator, IsoState, MipState, Occupancy, Phong, RaySegment,
+    ShadingCache, Span,
 };
 use raycaster::prelude::*;
 use raycaster::transfer::TfLut;
@@ -54,7 +55,8 @@ impl<'a> RayLab<'a> {
     fn new(scene: &'a Scene, tf: &'a TransferFunction, step: f32, iso: Option<f32>) -> Self {
         let lut = TfLut::new(tf, step);
         let skip = match iso {
-            None => SkipGrid::build(scene.macrocells(), |lo, hi| lut.any_visible(lo, hi)),
+            // What a DVR frame builds: occupancy and the steady flags.
+            None => Occupancy::Visible.skip_grid(scene, &lut, 0.0, None),
             Some(iso) => SkipGrid::for_iso(scene.volume(), scene.macrocells(), iso),
         };
         RayLab {

@@ -80,6 +80,13 @@ pub struct SkipGrid {
     /// The occupied cells as runs along z ([`SkipGrid::occupied_runs`]),
     /// listed on first use.
     runs: OnceLock<Vec<(UVec3, u32)>>,
+    /// Per 64 cells (as `occupied`), two words of flags of the occupied
+    /// ones: uniform, and flat under the TF ([`SkipGrid::with_steady`]);
+    /// empty when not built. A DVR ray asks for both at every occupied
+    /// cell it meets, and reading them here, a cache line for 64 cells,
+    /// costs less than the macrocell grid's value ranges (8 bytes a cell)
+    /// and uniform flags (a byte) do.
+    steady: Vec<[u64; 2]>,
 }
 
 /// The most cells in one of [`SkipGrid::occupied_runs`]: a run is one box
@@ -165,6 +172,7 @@ impl SkipGrid {
             ahead: Default::default(),
             iso_cells: None,
             runs: OnceLock::new(),
+            steady: Vec::new(),
         }
     }
 
@@ -208,6 +216,48 @@ impl SkipGrid {
     /// Cells per axis.
     pub fn count(&self) -> UVec3 {
         self.count
+    }
+
+    /// This grid with the flags [`SkipGrid::steady`] reads, for each
+    /// occupied cell of `cells`: whether it is uniform
+    /// ([`MacrocellGrid::uniform`]) and whether `flat(min, max)` holds (the
+    /// TF maps its value range to one colour).
+    pub fn with_steady(
+        mut self,
+        cells: &MacrocellGrid,
+        flat: impl Fn(f32, f32) -> bool + Sync,
+    ) -> Self {
+        use rayon::prelude::*;
+        self.steady = self
+            .occupied
+            .par_iter()
+            .enumerate()
+            .map(|(w, &occupied)| {
+                let mut out = [0u64; 2];
+                let mut bits = occupied;
+                while bits != 0 {
+                    let b = bits.trailing_zeros();
+                    bits &= bits - 1;
+                    let i = w * 64 + b as usize;
+                    let (lo, hi) = cells.ranges[i];
+                    out[0] |= (cells.uniform[i] as u64) << b;
+                    out[1] |= (flat(lo, hi) as u64) << b;
+                }
+                out
+            })
+            .collect();
+        self
+    }
+
+    /// For the occupied cell of index `i`: whether it is uniform and
+    /// whether the TF maps its value range to one colour (both false where
+    /// [`SkipGrid::with_steady`] did not build them).
+    #[inline(always)]
+    pub fn steady(&self, i: usize) -> (bool, bool) {
+        match self.steady.get(i >> 6) {
+            Some(&[uniform, flat]) => (uniform >> (i & 63) & 1 != 0, flat >> (i & 63) & 1 != 0),
+            None => (false, false),
+        }
     }
 
     /// The occupied cells as runs along z: the first cell of each run and
@@ -697,6 +747,39 @@ mod tests {
                 assert_eq!(runs.is_empty(), skip.occupied_count() == 0);
             }
         }
+    }
+
+    /// `steady` reads, for every occupied cell, the macrocell grid's
+    /// uniform flag and the `flat` test of its range; nothing for empty
+    /// cells or where the flags were not built.
+    #[test]
+    fn steady_flags_are_the_cells_own() {
+        let mut rng = fastrand::Rng::with_seed(8);
+        let (mut uniform, mut flats) = (0, 0);
+        for _ in 0..10 {
+            let count = UVec3::new(rng.u32(1..9), rng.u32(1..9), rng.u32(1..40));
+            let mut cells = crate::accel::random_macrocells(&mut rng, count, 0.5);
+            for (r, u) in cells.ranges.iter_mut().zip(&mut cells.uniform) {
+                let lo = rng.u32(0..4) as f32;
+                *r = (lo, lo + rng.u32(0..3) as f32);
+                *u = rng.bool();
+            }
+            let flat = |lo: f32, hi: f32| lo + hi < 3.5;
+            let plain = SkipGrid::build(&cells, |_, hi| hi > 1.5);
+            let skip = plain.clone().with_steady(&cells, flat);
+            for i in 0..cells.ranges.len() {
+                assert_eq!(plain.steady(i), (false, false));
+                let (lo, hi) = cells.ranges[i];
+                let want = match skip.is_occupied_index(i) {
+                    true => (cells.uniform[i], flat(lo, hi)),
+                    false => (false, false),
+                };
+                assert_eq!(skip.steady(i), want, "{count} cell {i}");
+                uniform += want.0 as u32;
+                flats += want.1 as u32;
+            }
+        }
+        assert!(uniform > 50 && flats > 50, "{uniform} {flats}");
     }
 
     #[test]

@@ -69,9 +69,8 @@ impl Integrator for DvrState {
                 // colour unshaded; gradient opacity weighs the opacity by
                 // that gradient, so then it is marched.
                 RunKind::Cell(i) => {
-                    let (lo, hi) = ctx.macrocells.ranges[i];
-                    !((ctx.macrocells.uniform[i] && ctx.gradient_opacity.is_none())
-                        || (by_value && ctx.lut.constant_over(lo, hi)))
+                    let (uniform, flat) = ctx.skip.steady(i);
+                    !((uniform && ctx.gradient_opacity.is_none()) || (by_value && flat))
                 }
                 RunKind::Unknown => true,
             };

@@ -143,6 +143,7 @@ impl Occupancy {
         match self {
             Occupancy::Visible => {
                 SkipGrid::build_clipped(cells, |lo, hi| lut.any_visible(lo, hi), clip)
+                    .with_steady(cells, |lo, hi| lut.constant_over(lo, hi))
             }
             Occupancy::IsoValue => SkipGrid::for_iso_clipped(scene.volume(), cells, iso, clip),
             Occupancy::Every => SkipGrid::build_clipped(cells, |_, _| true, clip),
