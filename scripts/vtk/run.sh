@@ -11,6 +11,7 @@
 #   VOL      volume (default volumes/800shapes_linear.vol; VTK needs the linear layout)
 #   RUNS     repetitions of the pair (default 1)      REPEAT  timed frames (default 5)
 #   SHADING  "off", "on" or "off on" (default off)    THREADS (default 2)
+#   RENDERER ours: object (default), tiles or serial
 #   OUT      output folder (default /tmp/vtk_bench)
 #   SAVE_PNGS=1  also copy the last images to scripts/vtk/{ours,vtk}.png if < 300 KB
 # Both sides run under `nice -n -10` when allowed.
@@ -24,6 +25,7 @@ RUNS="${RUNS:-1}"
 REPEAT="${REPEAT:-5}"
 SHADING="${SHADING:-off}"
 THREADS="${THREADS:-2}"
+RENDERER="${RENDERER:-object}"
 OUT="${OUT:-/tmp/vtk_bench}"
 mkdir -p "$OUT"
 
@@ -57,8 +59,8 @@ for run in $(seq 1 "$RUNS"); do
         tag="run${run}_shading_${sh}"
         load_before="$(cut -d' ' -f1 /proc/loadavg)"
         "${NICE[@]}" "$BIN" render "$VOL" "${CAM[@]}" --tf-preset shapes --shading "$sh" \
-            --threads "$THREADS" --repeat "$REPEAT" --stats --out "$OUT/ours_$tag.png" \
-            > "$OUT/ours_$tag.json"
+            --threads "$THREADS" --renderer "$RENDERER" --repeat "$REPEAT" --stats \
+            --out "$OUT/ours_$tag.png" > "$OUT/ours_$tag.json"
         "${NICE[@]}" python3 "$HERE/vtk_compare.py" render "$VOL" "${CAM[@]}" --shading "$sh" \
             --threads "$THREADS" --repeat "$REPEAT" --out "$OUT/vtk_$tag.png" \
             --ours "$OUT/ours_$tag.png" > "$OUT/vtk_$tag.json" 2> "$OUT/vtk_$tag.log"

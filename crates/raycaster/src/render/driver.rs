@@ -44,10 +44,11 @@ pub struct FrameJob<'a, V: Volume> {
 impl<V: Volume> FrameJob<'_, V> {
     /// The ray of pixel `(i, j)` clipped to the volume, `None` when it
     /// misses: jittered and clipped as the frame says, the one place every
-    /// schedule gets its rays from. With the frame's proxy depths (exact
-    /// iso), the part searched starts where the ray first meets a cell
-    /// that can hold the surface, and a ray that meets none keeps no
-    /// sample (it still counts as entering the volume).
+    /// schedule gets its rays from. With the frame's proxy depths, the
+    /// part searched (exact iso) or the samples kept (DVR) start where the
+    /// ray first meets a cell that can hold the surface or that the TF
+    /// makes visible, and a ray that meets none keeps no sample (it still
+    /// counts as entering the volume).
     #[inline]
     pub fn segment(&self, i: u32, j: u32) -> Option<RaySegment> {
         match self.pixel(i, j) {
@@ -248,7 +249,7 @@ pub enum PixelRay {
     /// It misses the volume's box.
     Misses,
     /// It enters the box, but the frame's proxy depths say it meets no
-    /// cell that can hold the surface (only exact iso frames have them):
+    /// cell that can hold the surface or show (exact iso and DVR frames):
     /// its segment keeps no sample, and its pixel shows the background.
     /// `None` when the segment was not worked out (see
     /// [`FrameJob::pixel_in`]).

@@ -31,6 +31,14 @@
 //! the boxes crowd into the bands the surface covers and equal shares of
 //! the bands left one thread with twice the other's fill.
 //!
+//! DVR draws the same way the macrocells its TF makes visible
+//! ([`CellRuns::occupied`]): a sample before the nearest of them along its
+//! ray lies in an empty macrocell and adds nothing, so a ray's first kept
+//! sample moves to its pixel's depth (the samples stay where they are), and
+//! a ray that meets none keeps no sample. The object renderer already
+//! passes over empty bricks, so it gains little; the serial and tiled
+//! renderers no longer walk the empty space in front of the data.
+//!
 //! [`LightProxy`] draws the same cells as seen along a directional light, so
 //! that shadow rays, which are parallel, learn where they have passed the
 //! last cell towards the light.
