@@ -331,8 +331,9 @@ impl FramePlan {
     }
 
     /// Draws the frame's proxy depths ([`FramePlan::proxy`]) when the
-    /// frame is exact iso with skipping, and with shadows its lights'
-    /// ([`FramePlan::light_proxies`]); the frame driver calls it for the
+    /// frame is exact iso or DVR with skipping, and for exact iso with
+    /// shadows its lights' ([`FramePlan::light_proxies`]); the frame
+    /// driver calls it for the
     /// rays it casts from the camera. A light's proxy depends on the light
     /// and the surface only, not on the camera: it is kept in `cache` for
     /// the next frames.

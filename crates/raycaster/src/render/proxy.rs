@@ -272,10 +272,10 @@ impl<'a> CellRuns<'a> {
     }
 }
 
-/// The box of a run of straddling cells along z (`(first cell, length)`),
-/// grown by [`MARGIN`], as `frame` sees it in `rect`: its blocks (those
-/// its pixels' rectangle touches) and its depth (a lower bound on where
-/// any ray enters it); `None` when it does not show.
+/// The box of a run of cells of side `side` along z (`(first cell,
+/// length)`), grown by [`MARGIN`], as `frame` sees it in `rect`: its
+/// blocks (those its pixels' rectangle touches) and its depth (a lower
+/// bound on where any ray enters it); `None` when it does not show.
 fn box_of(
     frame: &CameraFrame,
     rect: &PixelRect,
@@ -768,7 +768,8 @@ mod tests {
 
     /// The first pass's lane-wise kernel gives what `box_of` gives run by
     /// run, for eyes outside the grid, beside it and inside it (boxes
-    /// reaching the eye plane, behind the eye), for any number of runs.
+    /// reaching the eye plane, behind the eye), for any number of runs, of
+    /// interpolation cells and of macrocells (side 4).
     #[test]
     fn box_rects_kernel_is_box_of_run_by_run() {
         let (grid, skip) = sphere_cells(55.0);
@@ -783,25 +784,25 @@ mod tests {
             let cam = Camera::look_at(eye, Vec3::new(8.0, 7.5, 13.0), 61, 47);
             let frame = cam.frame().unwrap();
             let rect = frame.screen_rect(&grid.bounds());
-            for n in [0, 1, 15, 16, 17, runs.len()] {
+            for (n, side) in [0, 1, 15, 16, 17, runs.len()]
+                .into_iter()
+                .flat_map(|n| [(n, 1.0), (n / 4, 4.0)])
+            {
                 let some = &runs[..n];
                 let want: Vec<_> = some
                     .iter()
-                    .filter_map(|run| box_of(&frame, &rect, &grid, run, 1.0))
+                    .filter_map(|run| box_of(&frame, &rect, &grid, run, side))
                     .collect();
                 let got = simd::dispatch(BoxRects {
                     frame: &frame,
                     rect,
                     grid: &grid,
-                    runs: CellRuns {
-                        runs: some,
-                        side: 1.0,
-                    },
+                    runs: CellRuns { runs: some, side },
                 });
-                assert_eq!(got.len(), want.len(), "{eye} {n}");
+                assert_eq!(got.len(), want.len(), "{eye} {n} {side}");
                 for (g, w) in got.iter().zip(&want) {
-                    assert_eq!(g.0, w.0, "{eye} {n}");
-                    assert_eq!(g.1.to_bits(), w.1.to_bits(), "{eye} {n}");
+                    assert_eq!(g.0, w.0, "{eye} {n} {side}");
+                    assert_eq!(g.1.to_bits(), w.1.to_bits(), "{eye} {n} {side}");
                 }
                 if n == runs.len() {
                     assert!(!want.is_empty(), "{eye}");
