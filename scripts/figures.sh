@@ -56,7 +56,7 @@ for file in 800shapes_linear.vol 800shapes_block16.vol; do
             row "$file" "on / on" "$repeat" --size 700x700 --renderer "$renderer" --threads "$threads"
         done
     done
-    row "$file" "on / on, unshaded" "$repeat" --size 700x700 --renderer object --threads 2 --shading off
+    row "$file" "on / on, unshaded" "$repeat" --size 700x700 --renderer tiles --threads 2 --shading off
     # Pure sampling throughput on one core: nothing skipped, no shading,
     # the centre 350×350 of the frame (AVX2, then the portable loop).
     row "$file" "off / off, unshaded, 350×350" 3 --size 350x350 --renderer serial --threads 1 \

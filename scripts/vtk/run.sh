@@ -11,7 +11,7 @@
 #   VOL      volume (default volumes/800shapes_linear.vol; VTK needs the linear layout)
 #   RUNS     repetitions of the pair (default 1)      REPEAT  timed frames (default 5)
 #   SHADING  "off", "on" or "off on" (default off)    THREADS (default 2)
-#   RENDERER ours: object (default), tiles or serial
+#   RENDERER ours: tiles (default), object or serial
 #   OUT      output folder (default /tmp/vtk_bench)
 #   SAVE_PNGS=1  also copy the last images to scripts/vtk/{ours,vtk}.png if < 300 KB
 # Both sides run under `nice -n -10` when allowed.
@@ -25,7 +25,7 @@ RUNS="${RUNS:-1}"
 REPEAT="${REPEAT:-5}"
 SHADING="${SHADING:-off}"
 THREADS="${THREADS:-2}"
-RENDERER="${RENDERER:-object}"
+RENDERER="${RENDERER:-tiles}"
 OUT="${OUT:-/tmp/vtk_bench}"
 mkdir -p "$OUT"
 

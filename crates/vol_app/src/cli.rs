@@ -464,7 +464,7 @@ pub struct RenderArgs {
     #[arg(long, value_enum, default_value_t = Switch::On)]
     pub ess: Switch,
     /// Which renderer schedules the rays.
-    #[arg(long, value_enum, default_value_t = RendererKind::Object)]
+    #[arg(long, value_enum, default_value_t = RendererKind::Tiles)]
     pub renderer: RendererKind,
     /// Threads in all (0 = all cores). The serial renderer always uses one.
     #[arg(long, value_name = "N", default_value_t = 0, value_parser = clap::value_parser!(u32).range(0..=1024))]

@@ -14,7 +14,7 @@
 //! All three take the same samples (at `t_in + k·step` along every ray), so
 //! they give the same images.
 //! [`AnyRenderer`] picks one at run time ([`RendererKind::default`] is the
-//! object renderer, the fastest measured), and [`RendererFront`] runs any
+//! tiled renderer, the fastest measured), and [`RendererFront`] runs any
 //! renderer on its own thread behind an asynchronous handle.
 //!
 //! Every renderer runs its frames through one frame driver (`driver.rs`):
