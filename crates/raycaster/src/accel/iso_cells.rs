@@ -270,31 +270,15 @@ impl IsoCells {
             }
             let origin = macrocell_of(i as u32, n) * m;
             let local = |b: u32| origin + UVec3::new(b / (m * m), (b / m) % m, b % m);
-            // The run being gathered: its first bit and length.
-            let mut run: Option<(u32, u32)> = None;
+            // The macrocell's straddling cells, bit `b` for local cell `b`:
+            // runs along z within its rows of `m` cells.
             let at = s as usize * 2 * self.words;
-            for (w, &word) in self.bits[at..at + self.words].iter().enumerate() {
-                let mut bits = word;
-                while bits != 0 {
-                    let b = w as u32 * 64 + bits.trailing_zeros();
-                    bits &= bits - 1;
-                    run = match run {
-                        // The next cell along z in the same row.
-                        Some((first, len)) if b == first + len && !b.is_multiple_of(m) => {
-                            Some((first, len + 1))
-                        }
-                        _ => {
-                            if let Some((first, len)) = run {
-                                out.push((local(first), len));
-                            }
-                            Some((b, 1))
-                        }
-                    };
-                }
-            }
-            if let Some((first, len)) = run {
-                out.push((local(first), len));
-            }
+            super::bit_runs(
+                &self.bits[at..at + self.words],
+                m as usize,
+                u32::MAX,
+                |b, len| out.push((local(b as u32), len)),
+            );
         }
         out
     }

@@ -23,6 +23,40 @@ pub use macrocell::MacrocellGrid;
 pub use runs::{RunKind, SampleRun, SkipRuns};
 pub use skip::{Ahead, CellClass, SkipGrid};
 
+/// The set bits of `words` (bit `i % 64` of word `i / 64` for index `i`) as
+/// runs of consecutive indices, each within one row of `row` indices (a
+/// run never crosses a multiple of `row`) and at most `max_len` long:
+/// `run(first index, length)` for each, in index order. The cells of a grid
+/// stored z fastest become runs along z, which the proxy depths draw as one
+/// box each ([`SkipGrid::occupied_runs`], [`IsoCells::straddling_runs`]).
+pub(crate) fn bit_runs(words: &[u64], row: usize, max_len: u32, mut run: impl FnMut(usize, u32)) {
+    // The run being gathered: its first index and length.
+    let mut open: Option<(usize, u32)> = None;
+    for (w, &word) in words.iter().enumerate() {
+        let mut bits = word;
+        while bits != 0 {
+            let i = w * 64 + bits.trailing_zeros() as usize;
+            bits &= bits - 1;
+            open = match open {
+                Some((first, len))
+                    if i == first + len as usize && !i.is_multiple_of(row) && len < max_len =>
+                {
+                    Some((first, len + 1))
+                }
+                _ => {
+                    if let Some((first, len)) = open {
+                        run(first, len);
+                    }
+                    Some((i, 1))
+                }
+            };
+        }
+    }
+    if let Some((first, len)) = open {
+        run(first, len);
+    }
+}
+
 /// For tests: macrocells of side 4, `count` of them per axis, each occupied
 /// (value range 1..1, else 0..0) with probability `density`.
 #[cfg(test)]

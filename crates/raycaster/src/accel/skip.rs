@@ -277,33 +277,10 @@ impl SkipGrid {
                 (i % nz) as u32,
             )
         };
-        let mut out: Vec<(UVec3, u32)> = Vec::new();
-        // The run being gathered: its first cell's index and length.
-        let mut run: Option<(usize, u32)> = None;
-        for (w, &word) in self.occupied.iter().enumerate() {
-            let mut bits = word;
-            while bits != 0 {
-                let i = w * 64 + bits.trailing_zeros() as usize;
-                bits &= bits - 1;
-                run = match run {
-                    // The next cell along z in the same row.
-                    Some((first, len))
-                        if i == first + len as usize && !i.is_multiple_of(nz) && len < MAX_RUN =>
-                    {
-                        Some((first, len + 1))
-                    }
-                    _ => {
-                        if let Some((first, len)) = run {
-                            out.push((cell(first), len));
-                        }
-                        Some((i, 1))
-                    }
-                };
-            }
-        }
-        if let Some((first, len)) = run {
-            out.push((cell(first), len));
-        }
+        let mut out = Vec::new();
+        super::bit_runs(&self.occupied, nz, MAX_RUN, |first, len| {
+            out.push((cell(first), len))
+        });
         out
     }
 
