@@ -12,8 +12,8 @@
 //! copy compiled for AVX-512 too, used where the CPU has it (16 lanes a
 //! register); the 8-lane loops stay on AVX2, which ran them faster. The
 //! few operations the compiler
-//! cannot produce from plain loops (a lane permutation, a gather, a mask of
-//! lanes) are the trait's methods, one intrinsic each.
+//! cannot produce from plain loops (a splat into the upper lanes, a gather, a
+//! mask of lanes) are the trait's methods, one intrinsic each.
 //!
 //! Both copies do the same arithmetic in the same order (Rust never fuses a
 //! multiply and an add on its own), so they give the same bits.
@@ -71,15 +71,15 @@ fn run_avx2<K: Kernel>(kernel: K, isa: Avx2) -> K::Output {
 /// An instruction set, as a token: a value of the type proves the CPU has
 /// it.
 pub trait Isa: Copy {
-    /// `out[l] = table[index[l] % 8]`.
-    fn permute(self, table: &[f32; LANES], index: &[u32; LANES]) -> [f32; LANES];
-
     /// Bit `l` set when `v[l] != 0`.
     fn nonzero_mask(self, v: &[u32; LANES]) -> u32;
 
     /// `out[l] = table[index[l]]`, with each index first clamped to the
     /// table (which must not be empty).
     fn gather(self, table: &[f32], index: &[u32; LANES]) -> [f32; LANES];
+
+    /// `v` with lanes `from..` set to `x`.
+    fn splat_from(self, v: [f32; LANES], x: f32, from: usize) -> [f32; LANES];
 }
 
 /// Any CPU: plain Rust, vectorised by the compiler as far as the baseline
@@ -89,14 +89,14 @@ pub struct Portable;
 
 impl Isa for Portable {
     #[inline(always)]
-    fn permute(self, table: &[f32; LANES], index: &[u32; LANES]) -> [f32; LANES] {
-        std::array::from_fn(|l| table[index[l] as usize % LANES])
-    }
-
-    #[inline(always)]
     fn gather(self, table: &[f32], index: &[u32; LANES]) -> [f32; LANES] {
         let last = table.len() - 1;
         std::array::from_fn(|l| table[(index[l] as usize).min(last)])
+    }
+
+    #[inline(always)]
+    fn splat_from(self, v: [f32; LANES], x: f32, from: usize) -> [f32; LANES] {
+        std::array::from_fn(|l| if l >= from { x } else { v[l] })
     }
 
     #[inline(always)]
@@ -171,12 +171,6 @@ fn choice() -> u8 {
 #[cfg(target_arch = "x86_64")]
 impl Isa for Avx2 {
     #[inline(always)]
-    fn permute(self, table: &[f32; LANES], index: &[u32; LANES]) -> [f32; LANES] {
-        // SAFETY: an `Avx2` exists only when the CPU has AVX2.
-        unsafe { permute_avx2(table, index) }
-    }
-
-    #[inline(always)]
     fn gather(self, table: &[f32], index: &[u32; LANES]) -> [f32; LANES] {
         // SAFETY: an `Avx2` exists only when the CPU has AVX2.
         unsafe { gather_avx2(table, index) }
@@ -187,6 +181,31 @@ impl Isa for Avx2 {
         // SAFETY: an `Avx2` exists only when the CPU has AVX2.
         unsafe { nonzero_mask_avx2(v) }
     }
+
+    #[inline(always)]
+    fn splat_from(self, v: [f32; LANES], x: f32, from: usize) -> [f32; LANES] {
+        // SAFETY: an `Avx2` exists only when the CPU has AVX2.
+        unsafe { splat_from_avx2(v, x, from) }
+    }
+}
+
+/// A compare of the lane numbers with `from` and a `vblendvps`.
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "avx2")]
+#[inline]
+fn splat_from_avx2(v: [f32; LANES], x: f32, from: usize) -> [f32; LANES] {
+    use std::arch::x86_64::{
+        __m256, _mm256_blendv_ps, _mm256_castsi256_ps, _mm256_cmpgt_epi32, _mm256_set1_epi32,
+        _mm256_set1_ps, _mm256_setr_epi32,
+    };
+    // SAFETY: `[f32; 8]` and `__m256` are both 32 bytes of plain data.
+    let v: __m256 = unsafe { std::mem::transmute(v) };
+    let lanes = _mm256_setr_epi32(0, 1, 2, 3, 4, 5, 6, 7);
+    // All ones in the lanes before `from` (`from` <= 8 fits an i32).
+    let before = _mm256_cmpgt_epi32(_mm256_set1_epi32(from as i32), lanes);
+    let out = _mm256_blendv_ps(_mm256_set1_ps(x), v, _mm256_castsi256_ps(before));
+    // SAFETY: as above.
+    unsafe { std::mem::transmute(out) }
 }
 
 /// A compare and a `vmovmskps`.
@@ -201,21 +220,6 @@ fn nonzero_mask_avx2(v: &[u32; LANES]) -> u32 {
     let v: __m256i = unsafe { std::mem::transmute(*v) };
     let zero = _mm256_cmpeq_epi32(v, _mm256_setzero_si256());
     !(_mm256_movemask_ps(_mm256_castsi256_ps(zero)) as u32) & 0xff
-}
-
-/// One `vpermps`.
-#[cfg(target_arch = "x86_64")]
-#[target_feature(enable = "avx2")]
-#[inline]
-fn permute_avx2(table: &[f32; LANES], index: &[u32; LANES]) -> [f32; LANES] {
-    use std::arch::x86_64::{__m256, __m256i, _mm256_permutevar8x32_ps};
-    // SAFETY: `[f32; 8]`, `[u32; 8]`, `__m256` and `__m256i` are all 32
-    // bytes of plain data, so the transmutes reinterpret bits only.
-    unsafe {
-        let t: __m256 = std::mem::transmute(*table);
-        let i: __m256i = std::mem::transmute(*index);
-        std::mem::transmute(_mm256_permutevar8x32_ps(t, i))
-    }
 }
 
 /// Clamps the indices with `vpminud`, then one `vgatherdps`.
@@ -270,8 +274,12 @@ mod tests {
     fn avx2_agrees_with_portable() {
         let table: [f32; LANES] = std::array::from_fn(|i| i as f32 * 1.5 - 2.0);
         let index = [7, 0, 3, 3, 9, 1, 2, 15];
-        let wrapped: [f32; LANES] = std::array::from_fn(|l| table[index[l] as usize % 8]);
-        assert_eq!(Portable.permute(&table, &index), wrapped);
+        let splats: Vec<[f32; LANES]> = (0..=LANES)
+            .map(|from| std::array::from_fn(|l| if l >= from { 9.5 } else { table[l] }))
+            .collect();
+        for (from, want) in splats.iter().enumerate() {
+            assert_eq!(Portable.splat_from(table, 9.5, from), *want);
+        }
         let long: Vec<f32> = (0..20).map(|i| i as f32).collect();
         let gathered = [7.0, 0.0, 3.0, 3.0, 9.0, 1.0, 2.0, 15.0];
         assert_eq!(Portable.gather(&long, &index), gathered);
@@ -284,7 +292,9 @@ mod tests {
         assert_eq!(Portable.nonzero_mask(&v), 0b0100_1010);
         #[cfg(target_arch = "x86_64")]
         if let Some(avx2) = Avx2::detect() {
-            assert_eq!(avx2.permute(&table, &index), wrapped);
+            for (from, want) in splats.iter().enumerate() {
+                assert_eq!(avx2.splat_from(table, 9.5, from), *want);
+            }
             assert_eq!(avx2.gather(&long, &index), gathered);
             assert_eq!(
                 avx2.gather(&long, &clamped),

@@ -9,9 +9,9 @@
 //! What stays lane by
 //! lane is what cannot be vectorised: loading the eight corners of each new
 //! cell the ray enters (consecutive samples often share a cell, so a batch
-//! loads each distinct cell once into a slot and spreads the slots to the
-//! lanes with one permutation per corner), and compositing (each sample
-//! depends on the last).
+//! loads each distinct cell once and splats each corner into the lanes from
+//! the first in that cell on, a blend in a register per corner), and
+//! compositing (each sample depends on the last).
 //!
 //! The arithmetic is the scalar path's, operation for operation, so a batch
 //! gives the same values as [`Volume::sample`](crate::volume::Volume::sample)
@@ -103,9 +103,12 @@ impl SampleBatch {
         // cells).
         volume.prefetch(seg.pos(k + 4 * LANES as u32));
         // Corners: lane l starts a new cell when its cell differs from lane
-        // l − 1's (lane 0 compares with the previous fill's last lane). Each new cell is loaded
-        // into the next slot; slot 0 holds the cached cell until lane 0
-        // needs another, so eight lanes never need more than eight slots.
+        // l − 1's (lane 0 compares with the previous fill's last lane). The
+        // cells are loaded in lane order, each corner splatted into the lanes
+        // from its first on, so each lane ends with its own cell's. (Writing
+        // the cells into a table in memory lane by lane and permuting it
+        // made every batch wait for those stores: a vector load of several
+        // scalar stores cannot be forwarded from them.)
         let mut diff = [0u32; LANES];
         for a in 0..3 {
             let c = &self.cell[a];
@@ -117,24 +120,17 @@ impl SampleBatch {
             }
         }
         let starts = isa.nonzero_mask(&diff) & ((1u32 << len) - 1);
-        let slot_of = SLOT_OF[(starts & 0xfe) as usize];
-        let mut slots = [[0.0f32; LANES]; 8];
-        for (j, &v) in prev_corners.iter().enumerate() {
-            slots[j][0] = v;
-        }
+        let mut corners = prev_corners.map(|v| [v; LANES]);
         let mut pending = starts;
         while pending != 0 {
             let l = pending.trailing_zeros() as usize;
             pending &= pending - 1;
-            let corners = volume.corners(self.cell(l));
-            let s = slot_of[l] as usize;
-            for (j, &v) in corners.iter().enumerate() {
-                slots[j][s] = v;
+            let c = volume.corners(self.cell(l));
+            for j in 0..8 {
+                corners[j] = isa.splat_from(corners[j], c[j], l);
             }
         }
-        for j in 0..8 {
-            self.corners[j] = isa.permute(&slots[j], &slot_of);
-        }
+        self.corners = corners;
         // Trilinear blend: `volume::interpolate`, lane-wise.
         let c = &self.corners;
         let [fx, fy, fz] = &self.frac;
@@ -166,25 +162,6 @@ impl SampleBatch {
         std::array::from_fn(|j| self.corners[j][l])
     }
 }
-
-/// `SLOT_OF[m][l]`: the slot of lane `l` when the lanes whose bits are set in
-/// `m` start a new cell (lane 0 always uses slot 0): the number of set bits
-/// of `m` at and below `l`.
-const SLOT_OF: [[u32; LANES]; 256] = {
-    let mut table = [[0u32; LANES]; 256];
-    let mut m = 0;
-    while m < 256 {
-        let mut l = 0;
-        let mut count = 0;
-        while l < LANES {
-            count += (m >> l) as u32 & 1;
-            table[m][l] = count;
-            l += 1;
-        }
-        m += 1;
-    }
-    table
-};
 
 /// Folds `f` over the interpolated values of samples `k..end` of `seg`, in
 /// sample order, a batch at a time in the best instruction set.
