@@ -130,9 +130,10 @@ impl SampleBatch {
                 corners[j] = isa.splat_from(corners[j], c[j], l);
             }
         }
+        // Trilinear blend: `volume::interpolate`, lane-wise, from the corners
+        // still in registers.
         self.corners = corners;
-        // Trilinear blend: `volume::interpolate`, lane-wise.
-        let c = &self.corners;
+        let c = &corners;
         let [fx, fy, fz] = &self.frac;
         let lerp = |a: f32, b: f32, t: f32| a + (b - a) * t;
         for l in 0..LANES {
