@@ -74,7 +74,7 @@ impl SampleBatch {
         k: u32,
         len: usize,
     ) {
-        debug_assert!(len <= LANES);
+        debug_assert!(len <= LANES && k < i32::MAX as u32 - LANES as u32);
         // The previous fill's last cell, before this fill overwrites it.
         let (prev_cell, prev_corners) = match self.len {
             0 => (UVec3::MAX, [0.0; 8]),
@@ -86,9 +86,11 @@ impl SampleBatch {
         let dir = seg.dir.to_array();
         // Positions, cells and fractions: `seg.pos` and `Volume::locate`,
         // lane-wise.
+        // `seg.t`, converted through `i32` (exact: a ray has at most
+        // `MAX_SAMPLES_PER_RAY` samples), which a vector instruction does.
         let mut t = [0.0f32; LANES];
         for (l, t) in t.iter_mut().enumerate() {
-            *t = seg.t0 + (k + l as u32) as f32 * seg.step;
+            *t = seg.t0 + (k + l as u32) as i32 as f32 * seg.step;
         }
         for a in 0..3 {
             for l in 0..LANES {
