@@ -462,8 +462,10 @@ impl TfLut {
     #[inline(always)]
     fn index(x: f32) -> usize {
         // SAFETY: `position` returns a value in [0, entries.len() − 2] (NaN
-        // mapped to 0), so the truncation is representable.
-        unsafe { x.to_int_unchecked::<u32>() as usize }
+        // mapped to 0), and tables are far shorter than 2^31 entries, so
+        // the truncation is representable. (Through `i32`, which a vector
+        // instruction converts; `u32` takes the compiler six.)
+        unsafe { x.to_int_unchecked::<i32>() as u32 as usize }
     }
 
     /// Premultiplied, step-corrected `(α·r, α·g, α·b, α)` at value `v`.
