@@ -234,6 +234,9 @@ impl<V: Volume, const GO: bool> Kernel for March<'_, '_, V, GO> {
         'march: while b < end {
             let len = ((end - b) as usize).min(LANES);
             batch.fill(isa, volume, seg, b, len);
+            if GO || shading.is_some() {
+                volume.prefetch_wings(seg.pos(b + 4 * LANES as u32));
+            }
             let (x, visible) = lut.visible_lanes(isa, &batch.value);
             let mut lanes = visible & ((1 << len) - 1);
             while lanes != 0 {

@@ -116,6 +116,38 @@ impl<S: Sample, A: Addressing> Volume for GridVolume<'_, S, A> {
     }
 
     #[inline(always)]
+    fn prefetch_wings(&self, p: Vec3) {
+        #[cfg(target_arch = "x86_64")]
+        {
+            use std::arch::x86_64::{_MM_HINT_T0, _mm_prefetch};
+            let cell = self.locate(p).cell;
+            if !super::stencil_inside(cell, self.grid.dims) {
+                return;
+            }
+            let [xo, yo, zo] = self.addr.stencil_offsets(cell);
+            // The rows one before and two after the cell across x and y (its
+            // own rows hold the z wings, and `prefetch` asks for them).
+            for (a, b) in [
+                (0, 1),
+                (0, 2),
+                (3, 1),
+                (3, 2),
+                (1, 0),
+                (2, 0),
+                (1, 3),
+                (2, 3),
+            ] {
+                let at = self.data.as_ptr().wrapping_add(xo[a] + yo[b] + zo[1]);
+                // SAFETY: a prefetch is a hint that never faults and reads
+                // nothing the program sees, whatever the address.
+                unsafe { _mm_prefetch::<_MM_HINT_T0>(at.cast::<i8>()) };
+            }
+        }
+        #[cfg(not(target_arch = "x86_64"))]
+        let _ = p;
+    }
+
+    #[inline(always)]
     fn wings(&self, cell: UVec3) -> Wings {
         let [xo, yo, zo] = if super::stencil_inside(cell, self.grid.dims) {
             self.addr.stencil_offsets(cell)

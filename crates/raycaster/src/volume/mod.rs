@@ -59,6 +59,11 @@ pub trait Volume: Send + Sync {
     #[inline(always)]
     fn prefetch(&self, _p: Vec3) {}
 
+    /// Asks the CPU to start loading the rows of that cell's [`Volume::wings`]
+    /// that [`Volume::prefetch`] does not (a hint, for loops that shade).
+    #[inline(always)]
+    fn prefetch_wings(&self, _p: Vec3) {}
+
     /// The 24 voxel values one step outside cell `cell` along each axis, for
     /// the gradient (see [`Wings`]). At the grid's faces a coordinate that
     /// would leave the grid is clamped into it: a difference that would
