@@ -96,6 +96,27 @@ impl Isa for Portable {
 
     #[inline(always)]
     fn splat_from(self, v: [f32; LANES], x: f32, from: usize) -> [f32; LANES] {
+        #[cfg(all(target_arch = "x86_64", target_feature = "sse4.1"))]
+        {
+            use std::arch::x86_64::{
+                __m128, _mm_blendv_ps, _mm_castsi128_ps, _mm_cmpgt_epi32, _mm_set_ps1,
+                _mm_set1_epi32, _mm_setr_epi32,
+            };
+            // SAFETY: SSE4.1 is enabled for the whole build (the cfg above);
+            // `[f32; 8]` and `[__m128; 2]` are both 32 bytes of plain data.
+            unsafe {
+                let halves: [__m128; 2] = std::mem::transmute(v);
+                let from = _mm_set1_epi32(from as i32);
+                let splat = _mm_set_ps1(x);
+                let blend = |h: __m128, first: i32| {
+                    let lanes = _mm_setr_epi32(first, first + 1, first + 2, first + 3);
+                    let before = _mm_castsi128_ps(_mm_cmpgt_epi32(from, lanes));
+                    _mm_blendv_ps(splat, h, before)
+                };
+                std::mem::transmute([blend(halves[0], 0), blend(halves[1], 4)])
+            }
+        }
+        #[cfg(not(all(target_arch = "x86_64", target_feature = "sse4.1")))]
         std::array::from_fn(|l| if l >= from { x } else { v[l] })
     }
 
