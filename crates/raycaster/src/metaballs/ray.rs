@@ -129,13 +129,17 @@ pub struct Scratch {
 const CHUNK: usize = 4;
 
 /// One chunk of candidates tested against a ray's line: for each, `b`
-/// (where the ray passes closest to the centre) and `h2` (the squared
-/// distance of the centre from the line), as [`first_hit`]'s sweep computes
-/// them one by one: the same operations in the same order, lane by lane.
+/// (where the ray passes closest to the centre), `h2` (the squared
+/// distance of the centre from the line) and `half` (half the chord,
+/// `√(R² − h2)`, NaN for a ball the line misses), as [`first_hit`]'s sweep
+/// computes them one by one: the same operations in the same order, lane
+/// by lane (the square roots in one vector instruction, off the sweep's
+/// chain of dependent steps).
 #[derive(Debug, Clone, Copy, Default)]
 struct Chunk {
     b: [f64; CHUNK],
     h2: [f64; CHUNK],
+    half: [f64; CHUNK],
 }
 
 impl Chunk {
@@ -169,6 +173,7 @@ impl Chunk {
             let h2 = oc2[l] - b * b;
             self.b[l] = b;
             self.h2[l] = h2;
+            self.half[l] = (r2[l] - h2).sqrt();
             // Kept unless the sweep's own test `h2 >= R²` rejects it (a NaN
             // is kept), in one vector compare.
             #[allow(clippy::neg_cmp_op_on_partial_ord)]
@@ -593,8 +598,7 @@ fn first_hit_n<const N: usize, const BOUND: bool>(
                 break;
             }
             pending &= pending - 1;
-            let (b, h2) = (chunk.b[lane], chunk.h2[lane]);
-            let half = (fb.r2 - h2).sqrt();
+            let (b, h2, half) = (chunk.b[lane], chunk.h2[lane], chunk.half[lane]);
             let (t0, t1) = (b - half, b + half);
             if t1 <= t_cur {
                 continue;
@@ -856,7 +860,7 @@ mod tests {
     #[test]
     fn chunks_of_candidates_test_as_one_by_one_from_either_layout() {
         // `Chunk::test` against the sweep's own arithmetic, candidate by
-        // candidate: the same `b` and `h2` to the bit and the same verdict,
+        // candidate: the same `b`, `h2` and half chord to the bit and the same verdict,
         // from the list and from its columns, for rays from the candidates'
         // origin and from elsewhere, in whole and partial chunks.
         let mut rng = fastrand::Rng::with_seed(12);
@@ -904,6 +908,11 @@ mod tests {
                     assert_eq!(a.h2[l].to_bits(), h2.to_bits());
                     assert_eq!(b.b[l].to_bits(), bb.to_bits());
                     assert_eq!(b.h2[l].to_bits(), h2.to_bits());
+                    if meets {
+                        let half = (c.r2 - h2).sqrt();
+                        assert_eq!(a.half[l].to_bits(), half.to_bits());
+                        assert_eq!(b.half[l].to_bits(), half.to_bits());
+                    }
                     met += meets as u32;
                     missed += !meets as u32;
                 }
