@@ -83,7 +83,9 @@ pub trait Isa: Copy {
 }
 
 /// Any CPU: plain Rust, vectorised by the compiler as far as the baseline
-/// instruction set allows.
+/// instruction set allows (and SSE4.1's blend for [`Isa::splat_from`] when
+/// the baseline has it, as the workspace's x86-64-v2 does: the compiler
+/// turned the per-lane select into scalar code).
 #[derive(Debug, Clone, Copy)]
 pub struct Portable;
 
