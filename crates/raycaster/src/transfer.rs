@@ -464,7 +464,7 @@ impl TfLut {
         // SAFETY: `position` returns a value in [0, entries.len() − 2] (NaN
         // mapped to 0), and tables are far shorter than 2^31 entries, so
         // the truncation is representable. (Through `i32`, which a vector
-        // instruction converts; `u32` takes the compiler six.)
+        // instruction converts; `u32` takes the compiler several.)
         unsafe { x.to_int_unchecked::<i32>() as u32 as usize }
     }
 

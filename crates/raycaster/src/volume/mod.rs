@@ -336,7 +336,7 @@ pub(crate) fn split_coord(p: f32, max_coord: f32, last: u32) -> (u32, f32) {
     let i = (unsafe { p.to_int_unchecked::<i32>() } as u32).min(last);
     // Through `i32` (exact: `i` < 2^31): a vector of `u32` has no
     // conversion instruction before AVX-512, and the compiler's stand-in
-    // takes five.
+    // takes several.
     (i, p - i as i32 as f32)
 }
 
