@@ -32,6 +32,7 @@ fn params<'a>(
         balls: &lists.balls,
         kernel,
         threshold,
+        level_s: kernel.level_s(threshold).unwrap_or(f64::NAN),
         scale: hi,
         tol: ROOT_TOLERANCE * lo / hi,
         shading: None,

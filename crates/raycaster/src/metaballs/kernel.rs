@@ -79,6 +79,13 @@ impl Kernel {
     /// surface radius of a lone ball, as a fraction of its radius. `None`
     /// outside `(0, 1)`.
     pub fn level_radius(self, level: f64) -> Option<f64> {
+        self.level_s(level).map(f64::sqrt)
+    }
+
+    /// The `s = a²` in `[0, 1]` where `K = level` (`level` in `(0, 1)`),
+    /// to the last bit: [`Kernel::level_radius`] squared. `None` outside
+    /// `(0, 1)`.
+    pub fn level_s(self, level: f64) -> Option<f64> {
         if !(level > 0.0 && level < 1.0) {
             return None;
         }
@@ -92,7 +99,7 @@ impl Kernel {
                 hi = mid;
             }
         }
-        Some((0.5 * (lo + hi)).sqrt())
+        Some(0.5 * (lo + hi))
     }
 
     /// `K(s(x))` as a polynomial in `x` for the quadratic

@@ -25,7 +25,9 @@
 //! costs no polynomial work. While every active ball's kernel still rises
 //! along the ray (the interval ends before each one's point closest to the
 //! ray), so does `F`: outside the surface, the interval holds a root only
-//! if `F` reaches `T` at its end, one evaluation. Otherwise a copy of the
+//! if `F` reaches `T` at its end, one evaluation. With one ball active, `F`
+//! is its kernel alone, which reaches `T` on a sphere: the root in closed
+//! form ([`lone_root`]; the fronts of sparse balls). Otherwise a copy of the
 //! sum is Taylor-shifted to the interval's start and its first root
 //! isolated with Bernstein bounds ([`poly::first_root`]), to `1e-4·R_min`.
 
@@ -430,6 +432,9 @@ pub struct RayParams<'a> {
     pub kernel: Kernel,
     /// The surface's field value `T` (> 0).
     pub threshold: f64,
+    /// Where a lone ball's kernel equals `T`, as `s = a²`
+    /// ([`Kernel::level_s`]); NaN when it never does (`T >= 1`).
+    pub level_s: f64,
     /// The polynomial coordinate's unit (the largest radius).
     pub scale: f64,
     /// Root tolerance in `x` units.
@@ -524,10 +529,11 @@ fn first_hit_from(
 /// [`first_hit`] for a kernel of degree `N` along the ray.
 ///
 /// The running sum `poly`, its origin `t_org` and the peak bound are as in
-/// the module docs (`BOUND = false` turns the peak bound off, for the
-/// tests).
+/// the module docs. `SHORTCUTS = false` turns off what only saves work
+/// (the peak bound, the rising test, a lone ball's closed form): the
+/// tests compare the hits with and without them.
 #[inline(always)]
-fn first_hit_n<const N: usize, const BOUND: bool>(
+fn first_hit_n<const N: usize, const SHORTCUTS: bool>(
     p: &RayParams<'_>,
     ray: &Ray,
     candidates: &[Cand],
@@ -631,32 +637,57 @@ fn first_hit_n<const N: usize, const BOUND: bool>(
         // The interval [t_cur, t_ev] with the active set fixed.
         if active > 0
             && t_ev > t_cur
-            && (!BOUND || sign < 0.0 || peak + PEAK_SLACK >= p.threshold)
+            && (!SHORTCUTS || sign < 0.0 || peak + PEAK_SLACK >= p.threshold)
             // Outside the surface with `F` rising on the interval: a root
             // only if `F` reaches `T` by its end (one evaluation, where the
             // shift and bound below take several times as long).
-            && !(BOUND
+            && !(SHORTCUTS
                 && sign > 0.0
                 && t_ev <= rising_to
                 && poly::eval_n::<N>(&poly, (t_ev - t_org) * inv_sc) < p.threshold)
         {
-            // F − T in the interval's own coordinate x = (t − t_cur)/S.
-            let mut q = poly;
-            poly::shift_n::<N>(&mut q, (t_cur - t_org) * inv_sc);
-            let len = (t_ev - t_cur) * inv_sc;
-            q[0] -= p.threshold;
-            if sign == 0.0 {
-                sign = if q[0] > 0.0 { -1.0 } else { 1.0 };
-            }
-            if sign < 0.0 {
-                q.iter_mut().for_each(|c| *c = -*c);
-            }
-            let guess = s.last_hit.map_or(f64::NAN, |t| (t - t_cur) * inv_sc);
-            if let Some(x) = poly::first_root_n::<N>(&q, len, p.tol, guess) {
+            // A lone ball's surface is the sphere where its kernel is `T`:
+            // the root in closed form, where the search below would take
+            // a shift, a bound and iterations (sparse balls' fronts).
+            // The lone ball is the one whose exit is queued: found when
+            // needed, as one more value carried through the sweep (the
+            // active slots XORed) cost more than the search saved at 1000
+            // balls.
+            let lone = (SHORTCUTS && active == 1)
+                .then(|| s.heap.iter().find(|e| e.0.exit()))
+                .flatten();
+            let lone_root = match lone {
+                Some(e) => lone_root(
+                    &s.met[e.0.slot() as usize],
+                    p.level_s,
+                    t_cur,
+                    t_ev,
+                    &mut sign,
+                ),
+                None => None,
+            };
+            let root = match lone_root {
+                Some(root) => root,
+                None => {
+                    // F − T in the interval's own coordinate x = (t − t_cur)/S.
+                    let mut q = poly;
+                    poly::shift_n::<N>(&mut q, (t_cur - t_org) * inv_sc);
+                    let len = (t_ev - t_cur) * inv_sc;
+                    q[0] -= p.threshold;
+                    if sign == 0.0 {
+                        sign = if q[0] > 0.0 { -1.0 } else { 1.0 };
+                    }
+                    if sign < 0.0 {
+                        q.iter_mut().for_each(|c| *c = -*c);
+                    }
+                    let guess = s.last_hit.map_or(f64::NAN, |t| (t - t_cur) * inv_sc);
+                    poly::first_root_n::<N>(&q, len, p.tol, guess).map(|x| t_cur + x * sc)
+                }
+            };
+            if let Some(t) = root {
                 // The active balls are those whose exit is queued.
                 s.active
                     .extend(s.heap.iter().filter(|e| e.0.exit()).map(|e| e.0.ball()));
-                let t = t_cur + x * sc;
                 s.last_hit = Some(t);
                 return RayResult {
                     t: Some(t * inv_len),
@@ -713,6 +744,38 @@ fn first_hit_n<const N: usize, const BOUND: bool>(
             }
         }
     }
+}
+
+/// The first root of `F − T` in `[t_cur, t_ev]` where `m` is the only
+/// active ball, so `F` its kernel: `F >= T` exactly on the chord of the
+/// sphere `s = level_s` (`s` the ball's `a²`), `b ∓ √(level_s·R² − h²)`.
+/// `Some(None)` when the interval holds no root; `None` when the ray starts
+/// inside that sphere (`sign` still 0: the first interval tested), which
+/// the polynomial search handles. Sets `sign` to +1 (searching for `F`
+/// rising through `T`) when it was 0. Out of line: inlined, it left the
+/// sweep's other paths slower.
+#[inline(never)]
+fn lone_root(m: &Met, level_s: f64, t_cur: f64, t_ev: f64, sign: &mut f64) -> Option<Option<f64>> {
+    if *sign < 0.0 {
+        return None;
+    }
+    // NaN (no sphere: the kernel never reaches `T`) compares false.
+    let d2 = level_s / m.inv_r2 - m.h2;
+    let (t_in, t_out) = if d2 > 0.0 {
+        let half = d2.sqrt();
+        (m.b - half, m.b + half)
+    } else {
+        (f64::INFINITY, f64::NEG_INFINITY)
+    };
+    if *sign == 0.0 {
+        if t_in < t_cur && t_cur < t_out {
+            return None;
+        }
+        *sign = 1.0;
+    }
+    // Outside the surface at `t_cur`: the root is the sphere's entry if
+    // the interval reaches it (`t_cur` past the entry by rounding: there).
+    Some((t_cur < t_out && t_in <= t_ev).then(|| t_in.max(t_cur)))
 }
 
 /// A met ball's kernel as a polynomial in `x = (t − t_org)/S`:
@@ -835,6 +898,7 @@ mod tests {
             balls,
             kernel,
             threshold,
+            level_s: kernel.level_s(threshold).unwrap_or(f64::NAN),
             scale: 0.9,
             tol: 1e-4 * 0.3 / 0.9,
             shading: None,
@@ -855,6 +919,79 @@ mod tests {
             })
             .collect();
         Balls::new(balls, false).unwrap()
+    }
+
+    /// [`lone_root`] against the lone ball's field sampled densely: a root
+    /// it gives is in the interval, on the surface, with the field below
+    /// `T` before it; "no root" means the field stays below `T`; "not
+    /// mine" only for a ray that starts inside. Thresholds at and above 1
+    /// (no surface), rays through and past the ball, intervals short and
+    /// long, before and after the search's sign is known.
+    #[test]
+    fn a_lone_balls_root_is_where_its_field_first_reaches_the_threshold() {
+        let mut rng = fastrand::Rng::with_seed(12);
+        let (mut roots, mut none, mut inside) = (0, 0, 0);
+        for kernel in [Kernel::Wyvill, Kernel::Murakami] {
+            for threshold in [0.2, 0.5, 0.9, 1.0, 1.5] {
+                let level_s = kernel.level_s(threshold).unwrap_or(f64::NAN);
+                for case in 0..3000 {
+                    let r = 0.3 + rng.f64();
+                    let b = rng.f64() * 4.0 - 1.0;
+                    let m = Met {
+                        ball: 0,
+                        epoch: 0,
+                        b,
+                        h2: (rng.f64() * 1.1 * r).powi(2),
+                        inv_r2: 1.0 / (r * r),
+                        t1: b + r,
+                        peak: 0.0,
+                        kp: [0.0; MAX_TERMS],
+                    };
+                    let field = |t: f64| kernel.at_s(((t - m.b).powi(2) + m.h2) * m.inv_r2);
+                    let t_cur = b + (rng.f64() * 2.4 - 1.2) * r;
+                    let t_ev = t_cur + rng.f64() * 1.5 * r;
+                    // Half the cases with the sign known: outside at `t_cur`.
+                    let known = case % 2 == 0 && field(t_cur) < threshold;
+                    let mut sign = if known { 1.0 } else { 0.0 };
+                    let below_until = |end: f64| {
+                        (0..400).all(|k| {
+                            let t = t_cur + (end - t_cur) * k as f64 / 400.0;
+                            field(t) < threshold + 1e-9
+                        })
+                    };
+                    match lone_root(&m, level_s, t_cur, t_ev, &mut sign) {
+                        None => {
+                            assert!(!known && field(t_cur) > threshold - 1e-9, "{case}");
+                            assert_eq!(sign, 0.0);
+                            inside += 1;
+                        }
+                        Some(Some(t)) => {
+                            assert!(
+                                t >= t_cur && t <= t_ev,
+                                "{case}: {t} not in {t_cur}..{t_ev}"
+                            );
+                            assert!(
+                                (field(t) - threshold).abs() < 1e-9,
+                                "{case}: F = {}",
+                                field(t)
+                            );
+                            assert!(below_until(t), "{case}");
+                            assert_eq!(sign, 1.0);
+                            roots += 1;
+                        }
+                        Some(None) => {
+                            assert!(below_until(t_ev), "{case}");
+                            assert_eq!(sign, 1.0);
+                            none += 1;
+                        }
+                    }
+                }
+            }
+        }
+        assert!(
+            roots > 1000 && none > 1000 && inside > 500,
+            "{roots} {none} {inside}"
+        );
     }
 
     #[test]
@@ -1106,7 +1243,7 @@ mod tests {
     }
 
     #[test]
-    fn the_peak_bound_changes_no_hit() {
+    fn the_shortcuts_change_no_hit() {
         let mut rng = fastrand::Rng::with_seed(8);
         for kernel in [Kernel::Wyvill, Kernel::Murakami] {
             for (n, spread, threshold) in [(30, 3.0, 0.5), (200, 2.5, 0.3), (60, 4.0, 0.9)] {

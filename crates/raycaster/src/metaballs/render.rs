@@ -187,6 +187,7 @@ impl MetaballRenderer {
             balls: &lists.balls,
             kernel: options.kernel,
             threshold: threshold as f64,
+            level_s: options.kernel.level_s(threshold as f64).unwrap_or(f64::NAN),
             scale,
             tol: ROOT_TOLERANCE * r_min.min(r_max) / scale,
             shading: options.shading.then(|| options.phong.unwrap_or_default()),
