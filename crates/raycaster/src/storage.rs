@@ -218,7 +218,7 @@ impl Storage {
     }
 
     /// For a mapped file: an error when the file was changed in place since
-    /// it was mapped (see [`Source`]); always `Ok` for samples in RAM. The
+    /// it was mapped (see `Source`); always `Ok` for samples in RAM. The
     /// frame driver calls it before every frame (one `fstat`).
     pub fn check_source(&self) -> Result<()> {
         match &self.owner {

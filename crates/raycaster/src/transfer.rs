@@ -495,7 +495,7 @@ impl TfLut {
     }
 
     /// [`TfLut::lookup`] of value `v` at its table position `x` (from
-    /// [`TfLut::positions`]).
+    /// [`TfLut::visible_lanes`]).
     #[inline(always)]
     pub fn lookup_at(&self, x: f32, v: f32) -> Vec4 {
         let i = Self::index(x);

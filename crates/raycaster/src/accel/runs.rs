@@ -45,7 +45,7 @@ pub struct SampleRun {
 /// classification from scratch is a chain of dependent steps (the sample's
 /// position, its cell, the cell's box, the box's exit, the next sample)
 /// that the processor cannot overlap from one run to the next. So the runs also walk the macrocells with a
-/// 3D DDA ([`MacrocellWalk`]), which knows the next cell and where the ray
+/// 3D DDA (`MacrocellWalk`), which knows the next cell and where the ray
 /// leaves it from the last one, and only check that the cell of the run's
 /// first sample is the one the DDA predicted: the check is a branch that
 /// is almost always taken, off the chain. The runs are the same either

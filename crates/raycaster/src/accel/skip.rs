@@ -262,7 +262,7 @@ impl SkipGrid {
 
     /// The occupied cells as runs along z: the first cell of each run and
     /// how many cells it holds (consecutive along z in one row, at most
-    /// [`MAX_RUN`]), row by row in index order; listed on first use, then
+    /// `MAX_RUN`), row by row in index order; listed on first use, then
     /// kept. The proxy depths of a DVR frame draw them as boxes.
     pub fn occupied_runs(&self) -> &[(UVec3, u32)] {
         self.runs.get_or_init(|| self.list_occupied_runs())
@@ -340,7 +340,7 @@ impl SkipGrid {
 
     /// [`SkipGrid::classify`] for a ray moving into the empty space `ahead`
     /// ([`SkipGrid::ahead`]): an empty box extends ahead of the ray
-    /// ([`SkipGrid::cell_kind_ahead`]), so it is mostly longer along it.
+    /// (`SkipGrid::cell_kind_ahead`), so it is mostly longer along it.
     #[inline(always)]
     pub fn classify_ahead(&self, p: Vec3, ahead: Ahead<'_>) -> CellClass {
         let (c, index) = self.locate(p);

@@ -40,7 +40,7 @@ impl Integrator for DvrState {
 
     /// Composites the span's samples front to back. The samples of a
     /// macrocell that all look up one TF entry are composited without being
-    /// taken ([`DvrState::composite_constant`]): a uniform cell's, and,
+    /// taken (`DvrState::composite_constant`): a uniform cell's, and,
     /// unshaded, those of a cell whose value range the TF maps to one
     /// colour. Consecutive runs to be marched are marched together (a
     /// growing number of samples at a time), so batches stay full across

@@ -19,7 +19,7 @@
 //! own (seen along the run, its first cell hides the others; seen across
 //! it, its cells lie side by side at about one depth).
 //!
-//! The boxes are grown by [`MARGIN`] voxels, far more than the rounding of
+//! The boxes are grown by `MARGIN` voxels, far more than the rounding of
 //! a ray's position, so a ray that grazes a straddling cell, which the walk
 //! might still open, is never culled and never starts past it. The boxes
 //! are binned into bands of rows and the bands filled in parallel; the

@@ -11,7 +11,7 @@
 //!   [`AnyVolume::visit`] is the one place that picks the concrete type.
 //! - [`Volume`] is what an integrator may ask of a volume: locate a cell,
 //!   load its corners and gradient stencil, interpolate.
-//! - [`slice`] cuts axis-aligned slices for slice views.
+//! - [`slice`](mod@slice) cuts axis-aligned slices for slice views.
 
 mod addressing;
 mod any;

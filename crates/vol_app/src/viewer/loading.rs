@@ -255,10 +255,10 @@ const GRADIENT_BINS: usize = 128;
 
 impl GradientHistogram {
     /// The histogram of `volume`'s gradients, from the library's
-    /// [`Volume::gradient`](raycaster::volume::Volume::gradient) at voxels:
+    /// [`Volume::gradient`] at voxels:
     /// a regular lattice of at most [`GRADIENT_SAMPLES`] voxels, or for a
     /// large memory-mapped volume 4³ blocks of 16³ voxels spread over it,
-    /// so that only their pages are read (see [`count_in_blocks`]).
+    /// so that only their pages are read (see `count_in_blocks`).
     pub fn of(volume: &AnyVolume) -> Self {
         let dims = volume.grid().dims;
         let voxels = dims.as_dvec3().element_product();

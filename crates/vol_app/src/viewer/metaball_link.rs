@@ -76,7 +76,7 @@ struct Job {
     request: RenderRequest,
 }
 
-/// The answer to a [`Job`].
+/// The answer to a `Job`.
 pub type Reply = Result<RenderedFrame, RenderFailure>;
 
 /// The handle [`RenderLink`](super::render_link::RenderLink) holds; dropping

@@ -15,7 +15,7 @@
 //!   steady stream of frames instead of cancelling every one of them.
 //!
 //! A request's [`Level`] (reduced size, coarser step) goes to the front as
-//! its [`Quality`](raycaster::render::Quality); the frame arrives at the reduced size.
+//! its [`Quality`]; the frame arrives at the reduced size.
 //!
 //! The front is respawned when the renderer or its thread count changes, and
 //! told about a new volume with `set_scene`.

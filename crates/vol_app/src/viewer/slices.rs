@@ -12,7 +12,7 @@
 //!
 //! Controls in a slice: left click or drag moves the cursor, right drag
 //! sets window (horizontal) and level (vertical). The 3D view shows the
-//! cursor as a small cross of the three axes (see [`ViewerApp::draw_cursor_3d`]).
+//! cursor as a small cross of the three axes (see `ViewerApp::draw_cursor_3d`).
 
 use std::sync::Arc;
 

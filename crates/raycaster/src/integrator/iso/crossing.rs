@@ -127,7 +127,7 @@ impl CellCubic {
     }
 
     /// [`CellCubic::first_crossing`] for a caller that has already tried
-    /// [`CellCubic::stays_on`] on `[0, len]` with the side of `g(0)` and
+    /// `CellCubic::stays_on` on `[0, len]` with the side of `g(0)` and
     /// failed (the packets, for every lane): the same answer, without the
     /// proof tried twice.
     #[inline]

@@ -157,7 +157,7 @@ impl Integrator for IsoState {
 
     const PACKETS: bool = true;
 
-    /// Walks the rays together ([`packet`]) when the frame has the
+    /// Walks the rays together (`packet`) when the frame has the
     /// two-level structure to walk: the same hits as one by one. A block
     /// with one ray to search goes the same way, so that a ray's count of
     /// cells visited does not depend on how a renderer cut the image.
@@ -253,7 +253,7 @@ impl Integrator for IsoState {
 
     /// The block's normals and lights' Phong terms are computed lane-wise
     /// (`LaneNormals`, `lit_lanes`), and with shadows its shadow rays
-    /// towards each light are walked together ([`shadow_masks`]): they share
+    /// towards each light are walked together (`shadow_masks`): they share
     /// a direction and start close to each other on the surface. The same
     /// colours, to the bit, as one by one.
     fn resolve_packet<V: Volume>(
