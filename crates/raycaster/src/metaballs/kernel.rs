@@ -83,8 +83,8 @@ impl Kernel {
     }
 
     /// The `s = a²` in `[0, 1]` where `K = level` (`level` in `(0, 1)`),
-    /// to the last bit: [`Kernel::level_radius`] squared. `None` outside
-    /// `(0, 1)`.
+    /// by bisection to the last bit ([`Kernel::level_radius`] is its square
+    /// root). `None` outside `(0, 1)`.
     pub fn level_s(self, level: f64) -> Option<f64> {
         if !(level > 0.0 && level < 1.0) {
             return None;
