@@ -28,16 +28,13 @@ fn params<'a>(
         .fold((f64::MAX, 0.0f64), |(l, h), b| {
             (l.min(b.radius as f64), h.max(b.radius as f64))
         });
-    RayParams {
-        balls: &lists.balls,
+    RayParams::new(
+        &lists.balls,
         kernel,
         threshold,
-        level_s: kernel.level_s(threshold).unwrap_or(f64::NAN),
-        scale: hi,
-        tol: ROOT_TOLERANCE * lo / hi,
-        shading: None,
-        lights: &[],
-    }
+        hi,
+        ROOT_TOLERANCE * lo / hi,
+    )
 }
 
 /// Each pixel's ray, its tile's candidates, and the hit (`None`: miss).

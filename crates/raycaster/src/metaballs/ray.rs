@@ -423,18 +423,18 @@ pub fn chord(center: DVec3, r2: f64, o: DVec3, d: DVec3) -> Option<Chord> {
     })
 }
 
-/// What a frame's rays share.
+/// What a frame's rays share. The kernel and threshold are set once, by
+/// [`RayParams::new`], with what follows from them.
 #[derive(Debug, Clone, Copy)]
 pub struct RayParams<'a> {
     /// The frame's balls.
     pub balls: &'a [FrameBall],
-    /// The kernel.
-    pub kernel: Kernel,
+    kernel: Kernel,
     /// The surface's field value `T` (> 0).
-    pub threshold: f64,
+    threshold: f64,
     /// Where a lone ball's kernel equals `T`, as `s = a²`
     /// ([`Kernel::level_s`]); NaN when it never does (`T >= 1`).
-    pub level_s: f64,
+    level_s: f64,
     /// The polynomial coordinate's unit (the largest radius).
     pub scale: f64,
     /// Root tolerance in `x` units.
@@ -443,6 +443,39 @@ pub struct RayParams<'a> {
     pub shading: Option<Phong>,
     /// Unit directions towards the lights; empty: a headlight.
     pub lights: &'a [Vec3],
+}
+
+impl<'a> RayParams<'a> {
+    /// The parameters for the surface `F = threshold` of `balls` under
+    /// `kernel`, unshaded (set `shading` and `lights` to shade).
+    pub fn new(
+        balls: &'a [FrameBall],
+        kernel: Kernel,
+        threshold: f64,
+        scale: f64,
+        tol: f64,
+    ) -> Self {
+        RayParams {
+            balls,
+            kernel,
+            threshold,
+            level_s: kernel.level_s(threshold).unwrap_or(f64::NAN),
+            scale,
+            tol,
+            shading: None,
+            lights: &[],
+        }
+    }
+
+    /// The same parameters for another set of balls.
+    pub fn with_balls(self, balls: &'a [FrameBall]) -> Self {
+        RayParams { balls, ..self }
+    }
+
+    /// The surface's field value `T`.
+    pub fn threshold(&self) -> f64 {
+        self.threshold
+    }
 }
 
 /// A ray's result.
@@ -652,7 +685,9 @@ fn first_hit_n<const N: usize, const SHORTCUTS: bool>(
             // The lone ball is the one whose exit is queued: found when
             // needed, as one more value carried through the sweep (the
             // active slots XORed) cost more than the search saved at 1000
-            // balls.
+            // balls. (Written as a match: the same as a closure passed to
+            // `and_then`, which made the whole sweep compile to more
+            // instructions.)
             let lone = (SHORTCUTS && active == 1)
                 .then(|| s.heap.iter().find(|e| e.0.exit()))
                 .flatten();
@@ -894,16 +929,7 @@ mod tests {
     /// The parameters these tests trace with: radii 0.3 to 0.9 (the
     /// scale the largest), unshaded.
     fn test_params(balls: &[FrameBall], kernel: Kernel, threshold: f64) -> RayParams<'_> {
-        RayParams {
-            balls,
-            kernel,
-            threshold,
-            level_s: kernel.level_s(threshold).unwrap_or(f64::NAN),
-            scale: 0.9,
-            tol: 1e-4 * 0.3 / 0.9,
-            shading: None,
-            lights: &[],
-        }
+        RayParams::new(balls, kernel, threshold, 0.9, 1e-4 * 0.3 / 0.9)
     }
 
     fn random_balls(rng: &mut fastrand::Rng, n: usize, spread: f32) -> Balls {

@@ -183,16 +183,15 @@ impl MetaballRenderer {
                 (lo.min(b.radius as f64), hi.max(b.radius as f64))
             });
         let scale = r_max.max(f64::MIN_POSITIVE);
-        let params = RayParams {
-            balls: &lists.balls,
-            kernel: options.kernel,
-            threshold: threshold as f64,
-            level_s: options.kernel.level_s(threshold as f64).unwrap_or(f64::NAN),
+        let mut params = RayParams::new(
+            &lists.balls,
+            options.kernel,
+            threshold as f64,
             scale,
-            tol: ROOT_TOLERANCE * r_min.min(r_max) / scale,
-            shading: options.shading.then(|| options.phong.unwrap_or_default()),
-            lights: &lights,
-        };
+            ROOT_TOLERANCE * r_min.min(r_max) / scale,
+        );
+        params.shading = options.shading.then(|| options.phong.unwrap_or_default());
+        params.lights = &lights;
         // Shadow casters include the balls the camera does not see.
         let grid_start = Instant::now();
         let shadow_grid = if options.shadows && options.shading {
@@ -212,10 +211,7 @@ impl MetaballRenderer {
             None
         };
         let shadow_grid_time = grid_start.elapsed();
-        let shadow_params = shadow_grid.map(|g| RayParams {
-            balls: &g.balls,
-            ..params
-        });
+        let shadow_params = shadow_grid.map(|g| params.with_balls(&g.balls));
         let film = Film::new(camera.width, camera.height, options.background);
         let tiles: Vec<(u32, u32)> = (0..lists.rows)
             .flat_map(|ty| (0..lists.cols).map(move |tx| (tx, ty)))

@@ -191,7 +191,7 @@ impl ShadowGrid {
     pub fn blocked(&self, p: &RayParams<'_>, ray: &Ray, s: &mut ShadowScratch) -> bool {
         let margin = 1e-6 * self.cells.size;
         self.walk(ray, |idx, t_a, t_b| {
-            if self.bound[idx] < p.threshold {
+            if self.bound[idx] < p.threshold() {
                 return false;
             }
             // From where the ray enters the cell, with the balls that reach
@@ -378,16 +378,7 @@ mod tests {
         )
         .unwrap();
         let grid = ShadowGrid::build(&balls, kernel).unwrap();
-        let params = RayParams {
-            balls: &grid.balls,
-            kernel,
-            threshold,
-            level_s: kernel.level_s(threshold).unwrap_or(f64::NAN),
-            scale: 1.0,
-            tol: 1e-5,
-            shading: None,
-            lights: &[],
-        };
+        let params = RayParams::new(&grid.balls, kernel, threshold, 1.0, 1e-5);
         // The surface radius of a lone ball: K(s) = T, s = (r/R)².
         let surface = |radius: f64| {
             let (mut a, mut b) = (0.0f64, 1.0f64);
@@ -450,16 +441,7 @@ mod tests {
         let balls = Balls::new(list, false).unwrap();
         let grid = ShadowGrid::build(&balls, Kernel::Wyvill).unwrap();
         assert!(grid.cells.count() as f64 <= CELLS_PER_BALL * 5.0 + 64.0);
-        let params = RayParams {
-            balls: &grid.balls,
-            kernel: Kernel::Wyvill,
-            threshold: 0.5,
-            level_s: Kernel::Wyvill.level_s(0.5).unwrap_or(f64::NAN),
-            scale: 1.0,
-            tol: 1e-5,
-            shading: None,
-            lights: &[],
-        };
+        let params = RayParams::new(&grid.balls, Kernel::Wyvill, 0.5, 1.0, 1e-5);
         let mut s = ShadowScratch::default();
         let up = |x: f32| Ray {
             origin: Vec3::new(x, 0.7, 0.0),
@@ -479,16 +461,7 @@ mod tests {
         let list = random_balls(&mut rng, 200, 3.0, (0.3, 0.7));
         let balls = Balls::new(list, false).unwrap();
         let grid = ShadowGrid::build(&balls, kernel).unwrap();
-        let params = RayParams {
-            balls: &grid.balls,
-            kernel,
-            threshold: 0.5,
-            level_s: kernel.level_s(0.5).unwrap_or(f64::NAN),
-            scale: 0.7,
-            tol: 1e-5,
-            shading: None,
-            lights: &[],
-        };
+        let params = RayParams::new(&grid.balls, kernel, 0.5, 0.7, 1e-5);
         let field = |x: DVec3| {
             grid.balls
                 .iter()
