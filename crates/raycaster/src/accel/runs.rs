@@ -49,9 +49,17 @@ pub struct SampleRun {
 /// leaves it from the last one, and only check that the cell of the run's
 /// first sample is the one the DDA predicted: the check is a branch that
 /// is almost always taken, off the chain. The runs are the same either
-/// way: the DDA's exit is the cell box's slab exit, bit for bit.
+/// way: the DDA's exit is the cell box's slab exit, bit for bit (unless
+/// merged, below: then each run's samples lie in cells of its kind).
+///
+/// Occupied macrocells that follow one another along the ray may make one
+/// run: those for which the `key` (of the macrocell's index) is the same
+/// `Some`, up to [`MERGE_SAMPLES`] samples, walked by the DDA alone (an
+/// integrator that treats such cells alike saves a run each: the sample
+/// position, lookups and bookkeeping of a run cost several DDA steps).
+/// The run is `Cell` of its first macrocell. [`SkipRuns::new`] merges none.
 #[derive(Debug, Clone)]
-pub struct SkipRuns<'a> {
+pub struct SkipRuns<'a, K = fn(usize) -> Option<u64>> {
     skip: Option<&'a SkipGrid>,
     seg: &'a RaySegment,
     k: u32,
@@ -62,7 +70,16 @@ pub struct SkipRuns<'a> {
     ahead: Option<Ahead<'a>>,
     /// The ray per axis, for the DDA.
     axes: Axes,
+    /// Which occupied cells one run may span (see above).
+    key: K,
+    /// Whether empty cells beside occupied ones go in one run too.
+    merge_empty: bool,
 }
+
+/// The most samples [`SkipRuns`] puts in one run of several macrocells: a
+/// ray that ends (ERT) early in a run would otherwise have walked the
+/// rest of it for nothing.
+pub const MERGE_SAMPLES: u32 = 64;
 
 impl<'a> SkipRuns<'a> {
     /// The runs of samples `k0..k1` of `seg` (clamped to the ray's kept
@@ -71,6 +88,25 @@ impl<'a> SkipRuns<'a> {
     #[inline(always)]
     pub fn new(skip: Option<&'a SkipGrid>, seg: &'a RaySegment, k0: u32, k1: u32) -> Self {
         SkipRuns {
+            merge_empty: false,
+            ..Self::merging(skip, seg, k0, k1, |_| None)
+        }
+    }
+}
+
+impl<'a, K: Fn(usize) -> Option<u64>> SkipRuns<'a, K> {
+    /// [`SkipRuns::new`], with consecutive occupied macrocells of one
+    /// `key` in one run, and consecutive empty macrocells beside occupied
+    /// ones in one run.
+    #[inline(always)]
+    pub fn merging(
+        skip: Option<&'a SkipGrid>,
+        seg: &'a RaySegment,
+        k0: u32,
+        k1: u32,
+        key: K,
+    ) -> Self {
+        SkipRuns {
             skip,
             seg,
             k: k0.max(seg.first),
@@ -78,11 +114,13 @@ impl<'a> SkipRuns<'a> {
             walk: None,
             ahead: skip.map(|s| s.ahead(seg.inv_dir)),
             axes: Axes::of(seg),
+            key,
+            merge_empty: true,
         }
     }
 }
 
-impl Iterator for SkipRuns<'_> {
+impl<K: Fn(usize) -> Option<u64>> Iterator for SkipRuns<'_, K> {
     type Item = SampleRun;
 
     #[inline(always)]
@@ -138,7 +176,46 @@ impl Iterator for SkipRuns<'_> {
             CellKind::Occupied => RunKind::Cell(walk.index as usize),
             _ => RunKind::Empty,
         };
-        let mut end = seg.first_index_at_or_after(walk.exit()).max(k + 1);
+        // The run's last macrocell: the next ones along the ray while they
+        // are occupied with the same key, and the run stays short.
+        let mut last = walk;
+        match kind {
+            RunKind::Cell(i) => {
+                if let Some(key) = (self.key)(i) {
+                    let t_stop = seg.t(self.k1.min(k.saturating_add(MERGE_SAMPLES)));
+                    let mut w = walk;
+                    while last.exit() < t_stop && w.advance(skip, &self.axes) {
+                        let j = w.index as usize;
+                        if !skip.is_occupied_index(j) || (self.key)(j) != Some(key) {
+                            break;
+                        }
+                        last = w;
+                    }
+                }
+            }
+            _ if self.merge_empty => {
+                // An empty cell beside occupied ones: the next ones like
+                // it join its run (one in empty space far from any
+                // occupied cell is left to the jumps above).
+                let t_stop = seg.t(self.k1);
+                let mut w = walk;
+                while last.exit() < t_stop
+                    && w.advance(skip, &self.axes)
+                    && matches!(
+                        skip.cell_kind_ahead(
+                            UVec3::from_array(w.cell.map(|c| c as u32)),
+                            w.index as usize,
+                            ahead
+                        ),
+                        CellKind::EmptyAlone
+                    )
+                {
+                    last = w;
+                }
+            }
+            _ => {}
+        }
+        let mut end = seg.first_index_at_or_after(last.exit()).max(k + 1);
         if kind != RunKind::Empty {
             end = end.min(self.k1);
         }
@@ -147,7 +224,7 @@ impl Iterator for SkipRuns<'_> {
         // it holds no sample).
         self.walk = None;
         let t_end = seg.t(end);
-        let mut w = walk;
+        let mut w = last;
         for _ in 0..3 {
             if !w.advance(skip, &self.axes) {
                 break;
@@ -358,5 +435,85 @@ mod tests {
                 }
             }
         }
+    }
+
+    /// Merged runs (`SkipRuns::merging`) put every sample where the
+    /// classification of that sample alone puts it: an empty run's samples
+    /// in empty macrocells, a cell run's in occupied macrocells of that
+    /// run's key; they cover the samples asked for in order, each run
+    /// starting where the last ended; and they are fewer than the runs
+    /// without merging where keys repeat.
+    #[test]
+    fn merged_runs_hold_samples_of_their_own_kind() {
+        let mut rng = fastrand::Rng::with_seed(47);
+        let (mut merged_total, mut plain_total) = (0usize, 0usize);
+        for case in 0..24 {
+            let count = UVec3::new(rng.u32(2..14), rng.u32(2..14), rng.u32(2..14));
+            let density = [0.1, 0.4, 0.8][case % 3];
+            let cells = crate::accel::random_macrocells(&mut rng, count, density);
+            let skip = SkipGrid::build(&cells, |_, hi| hi > 0.5);
+            // Two keys (and none for some cells) over the occupied cells.
+            let keys: Vec<Option<u64>> = (0..cells.ranges.len())
+                .map(|_| match rng.u8(..8) {
+                    0 => None,
+                    k => Some((k % 2) as u64),
+                })
+                .collect();
+            let key = |i: usize| keys[i];
+            let grid = Grid::new(count * 4 + UVec3::ONE, Vec3::new(1.0, 0.7, 1.3));
+            let size = grid.bounds().max;
+            for i in 0..200 {
+                let inside = Vec3::new(rng.f32(), rng.f32(), rng.f32()) * size;
+                let mut dir = Vec3::new(rng.f32(), rng.f32(), rng.f32()) * 2.0 - 1.0;
+                if i % 5 == 0 {
+                    dir[rng.usize(0..3)] = 0.0;
+                }
+                let dir = dir.normalize_or(Vec3::X);
+                let origin = if i % 3 == 0 {
+                    inside
+                } else {
+                    inside - dir * 3.0 * size.length()
+                };
+                let step = [0.2, 0.5, 1.7][i % 3];
+                let Some(seg) = RaySegment::new(&grid, &Ray { origin, dir }, step) else {
+                    continue;
+                };
+                let ahead = skip.ahead(seg.inv_dir);
+                let cut = rng.u32(0..seg.count.max(1));
+                for (k0, k1) in [(0, u32::MAX), (0, cut), (cut, u32::MAX)] {
+                    let runs: Vec<_> = SkipRuns::merging(Some(&skip), &seg, k0, k1, key).collect();
+                    let (first, last) = (k0.max(seg.first), k1.min(seg.count));
+                    let mut next = first;
+                    for run in &runs {
+                        assert_eq!(run.start, next, "case {case}");
+                        assert!(run.end > run.start);
+                        for k in run.start..run.end.min(last) {
+                            match (run.kind, skip.classify_ahead(seg.pos(k), ahead)) {
+                                (RunKind::Empty, CellClass::Empty(_)) => {}
+                                (RunKind::Cell(i), CellClass::Occupied { index, .. }) => {
+                                    assert!(
+                                        index == i || (key(i).is_some() && key(index) == key(i)),
+                                        "case {case}: sample {k} in cell {index}, run of {i}"
+                                    );
+                                }
+                                (kind, class) => {
+                                    panic!("case {case}: sample {k} is {class:?}, run {kind:?}")
+                                }
+                            }
+                        }
+                        next = run.end;
+                    }
+                    assert!(next >= last || first >= last, "case {case}");
+                    if (k0, k1) == (0, u32::MAX) {
+                        merged_total += runs.len();
+                        plain_total += SkipRuns::new(Some(&skip), &seg, k0, k1).count();
+                    }
+                }
+            }
+        }
+        assert!(
+            merged_total < plain_total,
+            "{merged_total} against {plain_total}"
+        );
     }
 }

@@ -61,17 +61,28 @@ impl Integrator for DvrState {
         // its value alone, so a cell whose value range the TF maps to one
         // colour needs no sampling either.
         let by_value = ctx.shading.is_none() && ctx.gradient_opacity.is_none();
-        for run in span.runs() {
+        // Whether an occupied cell's samples are marched, or all look up the
+        // TF entry of its least value. A uniform cell's value is constant
+        // and its gradient zero (its neighbours hold the same value), which
+        // leaves the colour unshaded; gradient opacity weighs the opacity by
+        // that gradient, so then it is marched.
+        let marched = |i: usize| {
+            let (uniform, flat) = ctx.skip.steady(i);
+            !((uniform && ctx.gradient_opacity.is_none()) || (by_value && flat))
+        };
+        // Consecutive cells that are all marched, or all of one least value
+        // (so one TF entry), come as one run.
+        let key = |i: usize| {
+            Some(if marched(i) {
+                u64::MAX
+            } else {
+                ctx.macrocells.ranges[i].0.to_bits() as u64
+            })
+        };
+        for run in span.runs_merging(key) {
             let march = match run.kind {
                 RunKind::Empty => false,
-                // A uniform cell's value is constant and its gradient zero
-                // (its neighbours hold the same value), which leaves the
-                // colour unshaded; gradient opacity weighs the opacity by
-                // that gradient, so then it is marched.
-                RunKind::Cell(i) => {
-                    let (uniform, flat) = ctx.skip.steady(i);
-                    !((uniform && ctx.gradient_opacity.is_none()) || (by_value && flat))
-                }
+                RunKind::Cell(i) => marched(i),
                 RunKind::Unknown => true,
             };
             if march && run.start == pending.1 && pending.1 - pending.0 < gather {

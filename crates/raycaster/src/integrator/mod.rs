@@ -195,6 +195,19 @@ impl<'a, V: Volume> Span<'a, V> {
             self.end,
         )
     }
+
+    /// [`Span::runs`], with consecutive occupied macrocells of one `key`
+    /// in one run ([`SkipRuns::merging`]).
+    #[inline(always)]
+    pub fn runs_merging<K: Fn(usize) -> Option<u64>>(&self, key: K) -> SkipRuns<'a, K> {
+        SkipRuns::merging(
+            self.ctx.ess.then_some(self.ctx.skip),
+            self.seg,
+            self.start,
+            self.end,
+            key,
+        )
+    }
 }
 
 /// A rendering mode's per-ray state and the rule that advances it.
