@@ -15,7 +15,7 @@ FRAMES=${FRAMES:-150}
 DIMS=${DIMS:-128,128,128}
 DIR=${DIR:-volumes/plume}
 ROUNDS=${ROUNDS:-2}
-cargo build --release -q -p vol_app -p vol_gen
+cargo build --release -q --workspace --bin vol_app --bin vol_gen
 cargo build --release -q -p raycaster --example vseq_decode
 BIN=target/release
 if [ ! -e "$DIR/frame_0000.nrrd" ]; then

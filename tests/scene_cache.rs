@@ -252,11 +252,10 @@ fn a_damaged_cache_is_a_warning_and_is_rebuilt() {
     }
 }
 
-/// Makes `dir` unwritable: read-only permissions, and where the process
-/// may write anyway (root), a directory in the way of the file `blocked`.
-fn make_unwritable(dir: &Path, blocked: &Path) {
+/// Makes `dir` read-only by its permissions, which the cache respects
+/// even where the process may write anyway (root).
+fn make_unwritable(dir: &Path) {
     use std::os::unix::fs::PermissionsExt;
-    std::fs::create_dir_all(blocked).unwrap();
     std::fs::set_permissions(dir, std::fs::Permissions::from_mode(0o555)).unwrap();
 }
 
@@ -275,7 +274,7 @@ fn an_unwritable_directory_sends_the_cache_to_the_fallback_directory() {
     let fallback = dir.join("user-cache");
     let opts = options(&fallback);
     let cell = raycaster::scene::default_macrocell(DIMS);
-    make_unwritable(&data, &cache::sidecar_path(&path, cell));
+    make_unwritable(&data);
     let first = open(&path, &opts);
     let second = open(&path, &opts);
     make_writable(&data);
@@ -288,10 +287,11 @@ fn an_unwritable_directory_sends_the_cache_to_the_fallback_directory() {
     assert_eq!(first.cache.saved.as_deref(), Some(&*expected));
     assert_eq!(second.cache.loaded.as_deref(), Some(&*expected));
     assert_same_grid("fallback", &second.scene, &fresh(&path, cell));
+    assert!(!cache::sidecar_path(&path, cell).exists());
 
     // Nowhere to write: a warning naming the volume; the scene is whole.
     let nowhere = dir.file("a-file", b"x").join("sub");
-    make_unwritable(&data, &cache::sidecar_path(&path, cell));
+    make_unwritable(&data);
     let got = open(&path, &options(&nowhere));
     make_writable(&data);
     assert!(got.cache.saved.is_none() && got.cache.loaded.is_none());

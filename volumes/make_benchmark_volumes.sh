@@ -25,7 +25,9 @@ for arg in "$@"; do
     esac
 done
 
-cargo build --release --quiet -p vol_gen --manifest-path "$root/Cargo.toml"
+# --workspace: the features of a workspace build, so that the build after
+# the README's `cargo build --release --workspace` recompiles nothing.
+cargo build --release --quiet --workspace --bin vol_gen --manifest-path "$root/Cargo.toml"
 vol_gen="${CARGO_TARGET_DIR:-$root/target}/release/vol_gen"
 
 # The thesis README's parameters.

@@ -18,7 +18,9 @@ case "${1:-}" in
         ;;
 esac
 
-cargo build --release --quiet -p vol_gen --manifest-path "$root/Cargo.toml"
+# --workspace: the features of a workspace build, so that the build after
+# the README's `cargo build --release --workspace` recompiles nothing.
+cargo build --release --quiet --workspace --bin vol_gen --manifest-path "$root/Cargo.toml"
 vol_gen="${CARGO_TARGET_DIR:-$root/target}/release/vol_gen"
 
 "$vol_gen" --dims 129,129,101 --generator mesh --mesh "$root/tests/data/bunny.ply" \

@@ -17,7 +17,9 @@ set -euo pipefail
 here="$(cd "$(dirname "${BASH_SOURCE[0]}")" && pwd)"
 root="$(dirname "$here")"
 repeats="${1:-3}"
-cargo build --release --quiet -p vol_gen --manifest-path "$root/Cargo.toml"
+# --workspace: the features of a workspace build, so that the build after
+# the README's `cargo build --release --workspace` recompiles nothing.
+cargo build --release --quiet --workspace --bin vol_gen --manifest-path "$root/Cargo.toml"
 vol_gen="${CARGO_TARGET_DIR:-$root/target}/release/vol_gen"
 tmp="$here/.measure.vol"
 trap 'rm -f "$tmp"' EXIT

@@ -278,6 +278,15 @@ pub fn save_cached_macrocells(
 ) {
     let mut failures = Vec::new();
     for place in cache_places(path, shape.cell, dir) {
+        // A directory without write permission is left alone even by a
+        // process that could write into it anyway (root): a shared data
+        // set, read-only on purpose.
+        if let Some(dir) = place.parent().filter(|d| !d.as_os_str().is_empty())
+            && std::fs::metadata(dir).is_ok_and(|m| m.permissions().readonly())
+        {
+            failures.push(format!("{}: a read-only directory", dir.display()));
+            continue;
+        }
         let made = match place.parent() {
             Some(dir) if !dir.as_os_str().is_empty() => {
                 std::fs::create_dir_all(dir).map_err(|e| format!("{}: {e}", dir.display()))

@@ -324,8 +324,9 @@ pub struct RenderArgs {
     /// line). Without it, the built-in demo volume is rendered.
     pub file: Option<PathBuf>,
     /// Output PNG (RGB8). Default: out.png, unless --stats is given. With
-    /// --frames: the directory the frames go to (frame_0000.png, ...); with
-    /// --turntable: a directory (DIR/) or an animated GIF (FILE.gif).
+    /// --frames: the directory the frames go to (frame_0000.png, ...;
+    /// default frames/, none with --stats); with --turntable: a directory
+    /// (DIR/) or an animated GIF (FILE.gif).
     #[arg(long, value_name = "PNG")]
     pub out: Option<PathBuf>,
     /// The frame of a sequence to render (from 0).
@@ -516,7 +517,8 @@ pub struct RenderArgs {
     /// Sort-last distributed rendering under MPI (`mpirun -n P vol_app
     /// render FILE --distributed ...`): each rank reads and renders one
     /// part of the volume, rank 0 composites and writes the PNG and
-    /// --stats. Needs a vol_app built with `--features mpi`.
+    /// --stats. Needs a vol_app built with the mpi feature (`cargo build
+    /// --release --workspace --features vol_app/mpi`).
     #[arg(long, conflicts_with_all = ["frames", "turntable", "progressive"])]
     pub distributed: bool,
     /// With --distributed: read only each rank's part of the file (part;

@@ -34,8 +34,8 @@ use crate::cli::RenderArgs;
 /// Without the `mpi` feature: the error that says how to get it.
 #[cfg(not(feature = "mpi"))]
 pub fn run(_args: &RenderArgs) -> Result<(), Error> {
-    Err("--distributed: this vol_app was built without MPI; rebuild with --features mpi \
-         (cargo build --release -p vol_app --features mpi; needs an MPI library, libclang and pkg-config)"
+    Err("--distributed: this vol_app was built without MPI; rebuild with the mpi feature \
+         (cargo build --release --workspace --features vol_app/mpi; needs an MPI library, libclang and pkg-config)"
         .into())
 }
 

@@ -60,46 +60,49 @@ pub fn run(args: &InfoArgs) -> Result<(), Error> {
             "layout": layout.to_string(),
             "frames": info.volumes,
         });
-        println!("{v}");
-        return Ok(());
+        return crate::stats::print_json(&v);
     }
     let d = info.dims;
     let s = info.spacing;
-    println!("file         {}", args.file.display());
-    println!("format       {}", info.format);
-    println!("dimensions   {} x {} x {}", d.x, d.y, d.z);
+    let mut text = Vec::new();
+    text.push(format!("file         {}", args.file.display()));
+    text.push(format!("format       {}", info.format));
+    text.push(format!("dimensions   {} x {} x {}", d.x, d.y, d.z));
     if info.volumes > 1 {
-        println!("frames       {} (values below are frame 0's)", info.volumes);
+        text.push(format!(
+            "frames       {} (values below are frame 0's)",
+            info.volumes
+        ));
     }
-    println!("spacing      {}", triple(s));
-    println!("extent       {} (world units)", triple(extent));
+    text.push(format!("spacing      {}", triple(s)));
+    text.push(format!("extent       {} (world units)", triple(extent)));
     let order = info
         .byte_order
         .map(|e| format!(", {}-endian", e.name()))
         .unwrap_or_default();
-    println!(
+    text.push(format!(
         "stored as    {}{order}, {}",
         info.stored_type, info.encoding
-    );
+    ));
     if let Some(r) = info.rescale {
-        println!("rescale      value = {r} (held as {in_memory})");
+        text.push(format!("rescale      value = {r} (held as {in_memory})"));
     }
-    println!("values       {} .. {}", value(lo), value(hi));
-    println!(
+    text.push(format!("values       {} .. {}", value(lo), value(hi)));
+    text.push(format!(
         "orientation  {}",
         info.orientation
             .as_deref()
             .unwrap_or("none stored (not applied either way)")
-    );
-    println!("on disk      {}", with_count(info.file_bytes));
-    println!(
+    ));
+    text.push(format!("on disk      {}", with_count(info.file_bytes)));
+    text.push(format!(
         "in memory    {} ({storage_name}, {layout})",
         with_count(memory_bytes)
-    );
+    ));
     for note in &info.notes {
-        println!("note         {note}");
+        text.push(format!("note         {note}"));
     }
-    Ok(())
+    crate::stats::print_text(&text.join("\n"))
 }
 
 /// `0.703125 x 0.703125 x 2.5`: at most 6 significant digits, so that the

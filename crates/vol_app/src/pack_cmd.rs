@@ -53,7 +53,7 @@ pub fn run(args: &PackArgs) -> Result<(), Error> {
             "percent": report.percent(),
             "seconds": report.seconds,
         });
-        println!("{v}");
+        crate::stats::print_json(&v)?;
     } else {
         eprintln!(
             "vol_app: wrote {} ({} frames, {} of {} samples = {:.2} %, {:.1} s)",

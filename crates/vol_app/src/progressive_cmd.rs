@@ -142,7 +142,7 @@ pub fn run(setup: Setup<'_>) -> Result<(), Error> {
             load_ms: setup.load_ms,
             peak_rss_mb: peak_rss_mb(),
         };
-        println!("{}", serde_json::to_string(&stats)?);
+        crate::stats::print_json(&stats)?;
     } else {
         for f in &frames {
             eprintln!(

@@ -268,6 +268,21 @@ fn play(
     load_ms: f64,
 ) -> Result<(), Error> {
     let dir = match (&args.out, args.stats) {
+        // A path that names an image is a slip for a directory: refused,
+        // rather than made a directory with that name.
+        (Some(d), _)
+            if !d.is_dir()
+                && d.extension().is_some_and(|e| {
+                    ["png", "gif", "jpg", "jpeg"]
+                        .contains(&e.to_string_lossy().to_lowercase().as_str())
+                }) =>
+        {
+            return Err(format!(
+                "--out {}: --frames writes one PNG a frame into a directory (e.g. --out frames/)",
+                d.display()
+            )
+            .into());
+        }
         (Some(d), _) => Some(d.clone()),
         (None, false) => Some(std::path::PathBuf::from("frames")),
         (None, true) => None,

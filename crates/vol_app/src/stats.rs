@@ -44,9 +44,15 @@ pub struct MetaballJson {
 /// Prints `value` as one JSON line on stdout; a closed pipe (`| head`) is
 /// the reader's choice, not an error.
 pub fn print_json<T: Serialize>(value: &T) -> Result<(), crate::anyhow_like::Error> {
+    print_text(&serde_json::to_string(value)?)
+}
+
+/// Prints `text` and a newline on stdout; a closed pipe (`| head`) is the
+/// reader's choice, not an error.
+pub fn print_text(text: &str) -> Result<(), crate::anyhow_like::Error> {
     use std::io::Write;
     let mut out = std::io::stdout().lock();
-    if let Err(e) = writeln!(out, "{}", serde_json::to_string(value)?)
+    if let Err(e) = writeln!(out, "{text}")
         && e.kind() != std::io::ErrorKind::BrokenPipe
     {
         return Err(e.into());

@@ -705,6 +705,18 @@ fn pack_info_and_render_frames_of_a_sequence() {
         &output(vol_app().arg("pack").arg(&frames).arg("-o").arg(&packed)),
         "--force",
     );
+    // --frames writes into a directory: an image's name is refused, not
+    // made a directory.
+    let png_out = dir.path("movie.png");
+    assert_one_line_error(
+        &output(
+            vol_app_on("render", &packed)
+                .args(["--frames", "0..2", "--out"])
+                .arg(&png_out),
+        ),
+        "a directory",
+    );
+    assert!(!png_out.exists());
     for source in [&frames, &packed] {
         let out = run_ok(vol_app_on("info", source).arg("--json"));
         let info: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
@@ -895,9 +907,35 @@ fn distributed_without_the_mpi_feature_says_how_to_build_it() {
     let dir = TempDir::new("distributed");
     let file = ball_file(&dir, VolLayout::Linear);
     let out = output(vol_app_on("render", &file).arg("--distributed"));
-    assert_one_line_error(&out, "--features mpi");
+    assert_one_line_error(&out, "--features vol_app/mpi");
     let out = output(vol_app_on("render", &file).args(["--distributed-read", "whole"]));
     assert!(!out.status.success());
     let out = output(vol_app_on("render", &file).args(["--composite", "binary-swap"]));
     assert!(!out.status.success());
+}
+
+/// A reader that stops reading (`vol_app info FILE | head -1`) is not an
+/// error: no panic, no message, success.
+#[test]
+fn output_into_a_closed_pipe_is_not_an_error() {
+    let dir = TempDir::new("cli-pipe");
+    let file = ball_file(&dir, VolLayout::Linear);
+    for json in [false, true] {
+        let mut cmd = vol_app_on("info", &file);
+        if json {
+            cmd.arg("--json");
+        }
+        let mut child = cmd
+            .stdout(std::process::Stdio::piped())
+            .stderr(std::process::Stdio::piped())
+            .spawn()
+            .unwrap();
+        // Closed before the program opens the file, so its first write
+        // meets a closed pipe.
+        drop(child.stdout.take());
+        let out = child.wait_with_output().unwrap();
+        let err = String::from_utf8_lossy(&out.stderr);
+        assert!(out.status.success(), "json {json}: {err}");
+        assert!(err.is_empty(), "json {json}: {err}");
+    }
 }

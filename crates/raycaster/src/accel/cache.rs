@@ -10,7 +10,8 @@
 //!
 //! **Where.** Next to the volume, as `NAME.m<side>.rcidx` (one file per
 //! macrocell side, so the side is part of the key); where that cannot be
-//! written (a read-only directory), in the per-user cache directory
+//! written, or the directory is read-only by its permissions (respected
+//! even by root), in the per-user cache directory
 //! (`$XDG_CACHE_HOME/raycaster`, else `~/.cache/raycaster`) under a name
 //! that adds a hash of the volume's absolute path. Both places are looked
 //! in when opening.
