@@ -79,7 +79,8 @@ pub enum Command {
     Convert(ConvertArgs),
     /// Pack a sequence of volumes (a 4-D NIfTI/NRRD, a directory of frame
     /// files, or another .vseq) into a .vseq file: frames compressed one by
-    /// one, any frame readable on its own.
+    /// one, any frame readable without the others (from the key frame
+    /// before it when --key-interval is above 1).
     Pack(PackArgs),
 }
 

@@ -35,7 +35,7 @@ pub fn run(args: &ConvertArgs) -> Result<(), Error> {
     let d = opened.info.dims;
     let what = match format {
         OutputFormat::Vol(layout) => format!(".vol ({}, u8)", layout_name(layout)),
-        OutputFormat::Nrrd(e) => format!("NRRD ({e:?}, {})", opened.volume.sample_type()),
+        OutputFormat::Nrrd(e) => format!("NRRD ({}, {})", e.name(), opened.volume.sample_type()),
         OutputFormat::Nifti { gzip } => format!(
             "NIfTI-1{} ({})",
             if gzip { " gzip" } else { "" },

@@ -154,6 +154,9 @@ fn unrecognised(path: &Path, ext: &str) -> Error {
         "raw" | "bin" | "dat" | "img" => {
             format!("a .{ext} file has no header: describe it with --raw-dims and --raw-type")
         }
+        "csv" | "xyz" => {
+            format!("a .{ext} file is a list of points: render it with --mode metaballs")
+        }
         other => format!(
             "extension .{other}; supported: .vol, .nrrd, .nhdr, .nii, .nii.gz, .dcm or a DICOM directory, .vseq, raw with --raw-dims/--raw-type"
         ),
@@ -196,6 +199,21 @@ mod tests {
         let mut h = vec![0u8; PROBE_LEN];
         h[128..132].copy_from_slice(b"DICM");
         h
+    }
+
+    /// An unrecognised file's error says what to do for the extensions
+    /// that have an answer, and lists the formats otherwise.
+    #[test]
+    fn unrecognised_files_are_told_what_to_do() {
+        let says = |name: &str, needle: &str| {
+            let ext = name.rsplit_once('.').map_or("", |(_, e)| e);
+            let e = unrecognised(Path::new(name), ext).to_string();
+            assert!(e.contains(name) && e.contains(needle), "{name}: {e}");
+        };
+        says("points.csv", "--mode metaballs");
+        says("cloud.xyz", "--mode metaballs");
+        says("scan.raw", "--raw-dims");
+        says("notes.txt", "supported: .vol");
     }
 
     #[test]
