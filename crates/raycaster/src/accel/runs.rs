@@ -54,7 +54,7 @@ pub struct SampleRun {
 ///
 /// Occupied macrocells that follow one another along the ray may make one
 /// run: those for which the `key` (of the macrocell's index) is the same
-/// `Some`, up to [`MERGE_SAMPLES`] samples, walked by the DDA alone (an
+/// `Some`, up to `MERGE_SAMPLES` samples, walked by the DDA alone (an
 /// integrator that treats such cells alike saves a run each: the sample
 /// position, lookups and bookkeeping of a run cost several DDA steps).
 /// The run is `Cell` of its first macrocell. [`SkipRuns::new`] merges none.
