@@ -87,7 +87,9 @@ pub struct PlayStats {
     pub peak_rss_mb: f64,
 }
 
-/// The median of `v` (mean of the middle two for an even count).
+/// The median of `v` (mean of the middle two for an even count, rounded
+/// to three decimals: the values are milliseconds to 0.01, and the mean's
+/// binary rounding would print as `1.2349999999999999`).
 pub fn median(v: &[f64]) -> f64 {
     if v.is_empty() {
         return 0.0;
@@ -98,7 +100,7 @@ pub fn median(v: &[f64]) -> f64 {
     if n % 2 == 1 {
         s[n / 2]
     } else {
-        0.5 * (s[n / 2 - 1] + s[n / 2])
+        ((s[n / 2 - 1] + s[n / 2]) * 500.0).round() / 1000.0
     }
 }
 
@@ -121,5 +123,8 @@ mod tests {
     fn median_of_odd_and_even() {
         assert_eq!(super::median(&[3.0, 1.0, 2.0]), 2.0);
         assert_eq!(super::median(&[4.0, 1.0, 2.0, 3.0]), 2.5);
+        // Printed as written, not as the nearest binary mean.
+        let m = super::median(&[1.23, 1.24]);
+        assert_eq!(serde_json::to_string(&m).unwrap(), "1.235");
     }
 }

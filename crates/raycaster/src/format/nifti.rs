@@ -157,20 +157,31 @@ impl NiftiHeader {
         let (q, s) = self.xform_codes;
         let mut parts = Vec::new();
         if q > 0 {
-            let [b, c, d, x, y, z] = self.quatern;
+            let [b, c, d, x, y, z] = self.quatern.map(number);
             parts.push(format!(
                 "qform_code {q}: quaternion ({b}, {c}, {d}), offset ({x}, {y}, {z}), qfac {}",
-                self.pixdim[0]
+                number(self.pixdim[0])
             ));
         }
         if s > 0 {
             let r = |i: usize| {
-                let v = self.srow[i];
+                let v = self.srow[i].map(number);
                 format!("({}, {}, {}, {})", v[0], v[1], v[2], v[3])
             };
             parts.push(format!("sform_code {s}: srow {} {} {}", r(0), r(1), r(2)));
         }
         (!parts.is_empty()).then(|| parts.join("; "))
+    }
+}
+
+/// A header number as written, except that a tiny one (float noise such
+/// as `-1.9e-26` in a quaternion) shows in scientific notation rather
+/// than as 30 decimals.
+fn number(v: f32) -> String {
+    if v != 0.0 && v.abs() < 1e-4 {
+        format!("{v:e}")
+    } else {
+        v.to_string()
     }
 }
 
@@ -511,4 +522,15 @@ pub fn write(
             None => whole(w),
         }
     })
+}
+
+#[cfg(test)]
+mod tests {
+    #[test]
+    fn tiny_header_numbers_show_in_scientific_notation() {
+        assert_eq!(super::number(-1.9451068e-26), "-1.9451068e-26");
+        assert_eq!(super::number(0.0), "0");
+        assert_eq!(super::number(-90.5), "-90.5");
+        assert_eq!(super::number(1.0), "1");
+    }
 }
