@@ -177,44 +177,30 @@ impl<K: Fn(usize) -> Option<u64>> Iterator for SkipRuns<'_, K> {
             _ => RunKind::Empty,
         };
         // The run's last macrocell: the next ones along the ray while they
-        // are occupied with the same key, and the run stays short.
-        let mut last = walk;
-        match kind {
-            RunKind::Cell(i) => {
-                if let Some(key) = (self.key)(i) {
+        // are occupied with the same key, and the run stays short; or, for
+        // an empty cell beside occupied ones, the next ones like it (one in
+        // empty space far from any occupied cell is left to the jumps
+        // above).
+        let last = match kind {
+            RunKind::Cell(i) => match (self.key)(i) {
+                Some(key) => {
                     let t_stop = seg.t(self.k1.min(k.saturating_add(MERGE_SAMPLES)));
-                    let mut w = walk;
-                    while last.exit() < t_stop && w.advance(skip, &self.axes) {
+                    walk.extend_while(skip, &self.axes, t_stop, |w| {
                         let j = w.index as usize;
-                        if !skip.is_occupied_index(j) || (self.key)(j) != Some(key) {
-                            break;
-                        }
-                        last = w;
-                    }
+                        skip.is_occupied_index(j) && (self.key)(j) == Some(key)
+                    })
                 }
-            }
-            _ if self.merge_empty => {
-                // An empty cell beside occupied ones: the next ones like
-                // it join its run (one in empty space far from any
-                // occupied cell is left to the jumps above).
-                let t_stop = seg.t(self.k1);
-                let mut w = walk;
-                while last.exit() < t_stop
-                    && w.advance(skip, &self.axes)
-                    && matches!(
-                        skip.cell_kind_ahead(
-                            UVec3::from_array(w.cell.map(|c| c as u32)),
-                            w.index as usize,
-                            ahead
-                        ),
-                        CellKind::EmptyAlone
-                    )
-                {
-                    last = w;
-                }
-            }
-            _ => {}
-        }
+                None => walk,
+            },
+            _ if self.merge_empty => walk.extend_while(skip, &self.axes, seg.t(self.k1), |w| {
+                let cell = UVec3::from_array(w.cell.map(|c| c as u32));
+                matches!(
+                    skip.cell_kind_ahead(cell, w.index as usize, ahead),
+                    CellKind::EmptyAlone
+                )
+            }),
+            _ => walk,
+        };
         let mut end = seg.first_index_at_or_after(last.exit()).max(k + 1);
         if kind != RunKind::Empty {
             end = end.min(self.k1);
@@ -275,6 +261,24 @@ impl MacrocellWalk {
     #[inline(always)]
     fn exit(&self) -> f32 {
         self.next[0].min(self.next[1]).min(self.next[2])
+    }
+
+    /// The last of this cell and the cells after it along the ray that
+    /// `joins` accepts, stepping on while the ray leaves the last before
+    /// `t_stop`.
+    #[inline(always)]
+    fn extend_while(
+        self,
+        skip: &SkipGrid,
+        axes: &Axes,
+        t_stop: f32,
+        joins: impl Fn(&MacrocellWalk) -> bool,
+    ) -> Self {
+        let (mut last, mut w) = (self, self);
+        while last.exit() < t_stop && w.advance(skip, axes) && joins(&w) {
+            last = w;
+        }
+        last
     }
 
     /// Steps into the next cell along the ray; false when that is off the
@@ -392,6 +396,32 @@ mod tests {
         runs
     }
 
+    /// The grid of a test's `count` macrocells of 4 voxels (anisotropic
+    /// spacing).
+    fn test_grid(count: UVec3) -> Grid {
+        Grid::new(count * 4 + UVec3::ONE, Vec3::new(1.0, 0.7, 1.3))
+    }
+
+    /// The `i`-th of a test's random rays through `grid`: from outside or
+    /// inside, some along the axes (a direction component of 0), at one of
+    /// three steps; `None` when it misses the grid.
+    fn random_segment(rng: &mut fastrand::Rng, grid: &Grid, i: usize) -> Option<RaySegment> {
+        let size = grid.bounds().max;
+        let inside = Vec3::new(rng.f32(), rng.f32(), rng.f32()) * size;
+        let mut dir = Vec3::new(rng.f32(), rng.f32(), rng.f32()) * 2.0 - 1.0;
+        if i % 5 == 0 {
+            dir[rng.usize(0..3)] = 0.0;
+        }
+        let dir = dir.normalize_or(Vec3::X);
+        let origin = if i % 3 == 0 {
+            inside
+        } else {
+            inside - dir * 3.0 * size.length()
+        };
+        let step = [0.2, 0.5, 1.7][i % 3];
+        RaySegment::new(grid, &Ray { origin, dir }, step)
+    }
+
     /// The runs with the DDA's predictions are those of classifying every
     /// run's first sample, on random grids, for rays from outside and
     /// inside, some along the axes (a direction component of 0), whole and
@@ -404,22 +434,9 @@ mod tests {
             let density = [0.02, 0.1, 0.4][case % 3];
             let cells = crate::accel::random_macrocells(&mut rng, count, density);
             let skip = SkipGrid::build(&cells, |_, hi| hi > 0.5);
-            let grid = Grid::new(count * 4 + UVec3::ONE, Vec3::new(1.0, 0.7, 1.3));
-            let size = grid.bounds().max;
+            let grid = test_grid(count);
             for i in 0..300 {
-                let inside = Vec3::new(rng.f32(), rng.f32(), rng.f32()) * size;
-                let mut dir = Vec3::new(rng.f32(), rng.f32(), rng.f32()) * 2.0 - 1.0;
-                if i % 5 == 0 {
-                    dir[rng.usize(0..3)] = 0.0;
-                }
-                let dir = dir.normalize_or(Vec3::X);
-                let origin = if i % 3 == 0 {
-                    inside
-                } else {
-                    inside - dir * 3.0 * size.length()
-                };
-                let step = [0.2, 0.5, 1.7][i % 3];
-                let Some(seg) = RaySegment::new(&grid, &Ray { origin, dir }, step) else {
+                let Some(seg) = random_segment(&mut rng, &grid, i) else {
                     continue;
                 };
                 let whole: Vec<_> = SkipRuns::new(Some(&skip), &seg, 0, u32::MAX).collect();
@@ -460,22 +477,9 @@ mod tests {
                 })
                 .collect();
             let key = |i: usize| keys[i];
-            let grid = Grid::new(count * 4 + UVec3::ONE, Vec3::new(1.0, 0.7, 1.3));
-            let size = grid.bounds().max;
+            let grid = test_grid(count);
             for i in 0..200 {
-                let inside = Vec3::new(rng.f32(), rng.f32(), rng.f32()) * size;
-                let mut dir = Vec3::new(rng.f32(), rng.f32(), rng.f32()) * 2.0 - 1.0;
-                if i % 5 == 0 {
-                    dir[rng.usize(0..3)] = 0.0;
-                }
-                let dir = dir.normalize_or(Vec3::X);
-                let origin = if i % 3 == 0 {
-                    inside
-                } else {
-                    inside - dir * 3.0 * size.length()
-                };
-                let step = [0.2, 0.5, 1.7][i % 3];
-                let Some(seg) = RaySegment::new(&grid, &Ray { origin, dir }, step) else {
+                let Some(seg) = random_segment(&mut rng, &grid, i) else {
                     continue;
                 };
                 let ahead = skip.ahead(seg.inv_dir);
