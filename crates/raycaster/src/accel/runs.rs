@@ -409,11 +409,11 @@ mod tests {
         let size = grid.bounds().max;
         let inside = Vec3::new(rng.f32(), rng.f32(), rng.f32()) * size;
         let mut dir = Vec3::new(rng.f32(), rng.f32(), rng.f32()) * 2.0 - 1.0;
-        if i % 5 == 0 {
+        if i.is_multiple_of(5) {
             dir[rng.usize(0..3)] = 0.0;
         }
         let dir = dir.normalize_or(Vec3::X);
-        let origin = if i % 3 == 0 {
+        let origin = if i.is_multiple_of(3) {
             inside
         } else {
             inside - dir * 3.0 * size.length()
