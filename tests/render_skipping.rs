@@ -186,6 +186,70 @@ fn ert_and_ess_change_images_only_within_the_spec() {
     );
 }
 
+/// Solid objects seen from outside: the rays' proxy depths come from the
+/// occupied macrocells on the objects' surfaces only (those inside cannot
+/// be met first), and the images are still those without skipping, from
+/// every side, with a weak and an opaque TF.
+#[test]
+fn proxy_of_surface_cells_changes_nothing() {
+    let dims = [70u32, 64, 58];
+    let pair = common::make_pair(
+        dims,
+        [1.0, 1.0, 1.0],
+        common::TestLayout::Linear,
+        |x, y, z| {
+            let p = Vec3::new(x as f32, y as f32, z as f32);
+            let ball = p.distance(Vec3::new(30.0, 34.0, 28.0)) < 22.0;
+            let slab = (50..66).contains(&x) && (8..56).contains(&y) && (10..48).contains(&z);
+            if ball || slab { 100 } else { 0 }
+        },
+    );
+    let scene = &pair.scene;
+    let c = scene.grid().bounds().center();
+    let opaque = common::scenes::tf_points(
+        Interpolation::Step,
+        &[
+            (0.0, [0.0; 3], 0.0),
+            (50.0, [1.0, 0.5, 0.2], 0.0),
+            (60.0, [1.0, 0.5, 0.2], 0.9),
+        ],
+    );
+    let weak = common::scenes::tf_points(
+        Interpolation::Linear,
+        &[
+            (0.0, [0.0; 3], 0.0),
+            (100.0, [0.2, 0.6, 1.0], 0.05),
+            (255.0, [1.0; 3], 0.05),
+        ],
+    );
+    for eye in [
+        Vec3::new(0.0, 0.0, 150.0),
+        Vec3::new(0.0, 0.0, -150.0),
+        Vec3::new(160.0, 10.0, 5.0),
+        Vec3::new(-90.0, 100.0, -70.0),
+        Vec3::new(20.0, -140.0, 40.0),
+    ] {
+        let cam = Camera::look_at(c + eye, c, 80, 72);
+        for tf in [&opaque, &weak] {
+            let base = RenderOptions {
+                background: Vec3::new(0.1, 0.2, 0.3),
+                ..opts(RenderMode::Dvr, 0.4)
+            };
+            let plain = render(scene, &cam, tf, &base);
+            let ess = render(
+                scene,
+                &cam,
+                tf,
+                &RenderOptions {
+                    ess: true,
+                    ..base.clone()
+                },
+            );
+            assert_eq!(plain.rgb, ess.rgb, "eye {eye}: ESS changed the image");
+        }
+    }
+}
+
 /// ESS takes fewer samples on a mostly empty volume, and a small object in a
 /// huge empty box costs about as many samples as the object alone: skipping
 /// costs nothing per skipped step.

@@ -113,7 +113,7 @@ impl<'a, K: Fn(usize) -> Option<u64>> SkipRuns<'a, K> {
             k1: k1.min(seg.count),
             walk: None,
             ahead: skip.map(|s| s.ahead(seg.inv_dir)),
-            axes: Axes::of(seg),
+            axes: Axes::of(seg, skip),
             key,
             merge_empty: true,
         }
@@ -292,11 +292,12 @@ impl MacrocellWalk {
         let a = if n[2] < n[a01] { 2 } else { a01 };
         let s = axes.step[a];
         let c = self.cell[a] + s;
-        if s == 0 || c < 0 || c >= skip.count().to_array()[a] as i32 {
+        // One unsigned compare for both ends of the grid.
+        if s == 0 || c as u32 >= axes.count[a] {
             return false;
         }
         self.cell[a] = c;
-        self.index += s as isize * skip.index_strides()[a];
+        self.index += axes.index_step[a];
         self.next[a] = plane(skip, axes, c, a);
         true
     }
@@ -312,22 +313,35 @@ struct Axes {
     ///
     /// [`Aabb::exit`]: crate::geometry::Aabb::exit
     step: [i32; 3],
+    /// The skip grid's cells per axis.
+    count: [u32; 3],
+    /// How far the index moves for a step along each axis (`step` times
+    /// the index stride).
+    index_step: [isize; 3],
 }
 
 impl Axes {
+    /// The ray `seg` on the cells of `skip` (any grid when `None`: then
+    /// the DDA is never used).
     #[inline(always)]
-    fn of(seg: &RaySegment) -> Self {
+    fn of(seg: &RaySegment, skip: Option<&SkipGrid>) -> Self {
         let inv_dir = seg.inv_dir.to_array();
+        let step = inv_dir.map(|inv| {
+            if inv.abs() < f32::INFINITY {
+                if inv >= 0.0 { 1 } else { -1 }
+            } else {
+                0
+            }
+        });
+        let (count, strides) = skip.map_or(([0; 3], [0; 3]), |skip| {
+            (skip.count().to_array(), skip.index_strides())
+        });
         Axes {
             origin: seg.origin.to_array(),
             inv_dir,
-            step: inv_dir.map(|inv| {
-                if inv.abs() < f32::INFINITY {
-                    if inv >= 0.0 { 1 } else { -1 }
-                } else {
-                    0
-                }
-            }),
+            step,
+            count,
+            index_step: std::array::from_fn(|a| step[a] as isize * strides[a]),
         }
     }
 }

@@ -80,6 +80,9 @@ pub struct SkipGrid {
     /// The occupied cells as runs along z ([`SkipGrid::occupied_runs`]),
     /// listed on first use.
     runs: OnceLock<Vec<(UVec3, u32)>>,
+    /// The occupied cells on the surface of the occupied region as runs
+    /// along z ([`SkipGrid::surface_runs`]), listed on first use.
+    surface_runs: OnceLock<Vec<(UVec3, u32)>>,
     /// Per 64 cells (as `occupied`), two words of flags of the occupied
     /// ones: uniform, and flat under the TF ([`SkipGrid::with_steady`]);
     /// empty when not built. A DVR ray asks for both at every occupied
@@ -172,6 +175,7 @@ impl SkipGrid {
             ahead: Default::default(),
             iso_cells: None,
             runs: OnceLock::new(),
+            surface_runs: OnceLock::new(),
             steady: Vec::new(),
         }
     }
@@ -268,19 +272,81 @@ impl SkipGrid {
         self.runs.get_or_init(|| self.list_occupied_runs())
     }
 
-    fn list_occupied_runs(&self) -> Vec<(UVec3, u32)> {
+    /// [`SkipGrid::occupied_runs`] without the cells inside the occupied
+    /// region: those off the grid's faces whose 6 face neighbours are all
+    /// occupied. A ray from outside the grid meets the occupied cells first
+    /// at a point `q` where it comes from outside the grid or from an empty
+    /// cell. Of the cells whose (closed) boxes hold `q`, stepping face to
+    /// face from an occupied one to that empty one (or out of the grid)
+    /// leaves some occupied cell through a face into empty space or out of
+    /// the grid: a surface cell, which holds `q`. So for eyes outside the
+    /// grid, the nearest entry into these cells' boxes along a ray is the
+    /// nearest entry into an occupied one. Listed on first use, then kept.
+    pub fn surface_runs(&self) -> &[(UVec3, u32)] {
+        self.surface_runs.get_or_init(|| {
+            use rayon::prelude::*;
+            let surface: Vec<u64> = (0..self.occupied.len())
+                .into_par_iter()
+                .map(|w| self.surface_bits(w))
+                .collect();
+            let mut out = Vec::new();
+            super::bit_runs(&surface, self.count.z as usize, MAX_RUN, |first, len| {
+                out.push((self.cell_at(first), len))
+            });
+            out
+        })
+    }
+
+    /// Word `w` of the occupancy bits with only the surface cells' set
+    /// (see [`SkipGrid::surface_runs`]).
+    fn surface_bits(&self, w: usize) -> u64 {
+        let n = self.count;
+        let (nx, ny, nz) = (n.x as usize, n.y as usize, n.z as usize);
+        let occupied = |x: usize, y: usize, z: usize| self.is_occupied_index((x * ny + y) * nz + z);
+        let mut bits = self.occupied[w];
+        let mut surface = 0;
+        while bits != 0 {
+            let b = bits.trailing_zeros() as usize;
+            bits &= bits - 1;
+            let i = w * 64 + b;
+            let (x, y, z) = (i / (ny * nz), i / nz % ny, i % nz);
+            let inside = x > 0
+                && y > 0
+                && z > 0
+                && x + 1 < nx
+                && y + 1 < ny
+                && z + 1 < nz
+                && occupied(x - 1, y, z)
+                && occupied(x + 1, y, z)
+                && occupied(x, y - 1, z)
+                && occupied(x, y + 1, z)
+                && occupied(x, y, z - 1)
+                && occupied(x, y, z + 1);
+            if !inside {
+                surface |= 1 << b;
+            }
+        }
+        surface
+    }
+
+    /// The cell of index `i`.
+    fn cell_at(&self, i: usize) -> UVec3 {
         let (ny, nz) = (self.count.y as usize, self.count.z as usize);
-        let cell = |i: usize| {
-            UVec3::new(
-                (i / (ny * nz)) as u32,
-                (i / nz % ny) as u32,
-                (i % nz) as u32,
-            )
-        };
+        UVec3::new(
+            (i / (ny * nz)) as u32,
+            (i / nz % ny) as u32,
+            (i % nz) as u32,
+        )
+    }
+
+    fn list_occupied_runs(&self) -> Vec<(UVec3, u32)> {
         let mut out = Vec::new();
-        super::bit_runs(&self.occupied, nz, MAX_RUN, |first, len| {
-            out.push((cell(first), len))
-        });
+        super::bit_runs(
+            &self.occupied,
+            self.count.z as usize,
+            MAX_RUN,
+            |first, len| out.push((self.cell_at(first), len)),
+        );
         out
     }
 
@@ -724,6 +790,95 @@ mod tests {
                 assert_eq!(runs.is_empty(), skip.occupied_count() == 0);
             }
         }
+    }
+
+    /// The surface runs hold the occupied cells that lie on a face of the
+    /// grid or have an empty face neighbour, each once, and no others
+    /// (dense random grids have interior cells to leave out); and for rays
+    /// from outside the grid, the nearest entry into their boxes is the
+    /// nearest entry into an occupied cell's box.
+    #[test]
+    fn surface_runs_hold_the_cells_rays_can_meet_first() {
+        let mut rng = fastrand::Rng::with_seed(12);
+        let mut left_out = 0;
+        // Random cells (dense: interior cells next to empty ones), and
+        // balls in empty space (rays reach them from every side).
+        for density in [0.0, 0.5, 0.9, 0.97, 1.0, -1.0] {
+            for _ in 0..10 {
+                let count = UVec3::new(rng.u32(1..9), rng.u32(1..9), rng.u32(1..70));
+                let mut cells = crate::accel::random_macrocells(&mut rng, count, density);
+                if density < 0.0 {
+                    let balls: Vec<(Vec3, f32)> = (0..rng.u32(1..4))
+                        .map(|_| {
+                            let centre =
+                                Vec3::new(rng.f32(), rng.f32(), rng.f32()) * count.as_vec3();
+                            (centre, 1.0 + 3.0 * rng.f32())
+                        })
+                        .collect();
+                    for (i, r) in cells.ranges.iter_mut().enumerate() {
+                        let (ny, nz) = (count.y as usize, count.z as usize);
+                        let c = Vec3::new(
+                            (i / (ny * nz)) as f32,
+                            (i / nz % ny) as f32,
+                            (i % nz) as f32,
+                        );
+                        let inside = balls.iter().any(|&(o, rad)| (c + 0.5).distance(o) < rad);
+                        *r = if inside { (1.0, 1.0) } else { (0.0, 0.0) };
+                    }
+                }
+                let skip = SkipGrid::build(&cells, |_, hi| hi > 0.5);
+                let mut seen = vec![0u32; cells.ranges.len()];
+                for &(c, len) in skip.surface_runs() {
+                    assert!((1..=MAX_RUN).contains(&len), "{count} run {c} of {len}");
+                    for z in c.z..c.z + len {
+                        seen[skip.index(UVec3::new(c.x, c.y, z))] += 1;
+                    }
+                }
+                let on_surface = |c: UVec3| {
+                    let faces = [glam::IVec3::X, glam::IVec3::Y, glam::IVec3::Z];
+                    faces.into_iter().flat_map(|f| [f, -f]).any(|f| {
+                        let n = c.as_ivec3() + f;
+                        n.cmplt(glam::IVec3::ZERO).any()
+                            || n.cmpge(count.as_ivec3()).any()
+                            || !skip.is_occupied(n.as_uvec3())
+                    })
+                };
+                for (i, &n) in seen.iter().enumerate() {
+                    let c = skip.cell_at(i);
+                    let expect = skip.is_occupied(c) && on_surface(c);
+                    assert_eq!(n, expect as u32, "{count} cell {c}");
+                    left_out += (skip.is_occupied(c) && !expect) as usize;
+                }
+                // Rays from outside the grid's box: the nearest entry into
+                // an occupied cell's box is an entry into a surface cell's.
+                let side = skip.cell_side();
+                let size = count.as_vec3() * side;
+                let cell_box = |i: usize| {
+                    let lo = skip.cell_at(i).as_vec3() * side;
+                    Aabb::new(lo, lo + Vec3::splat(side))
+                };
+                for _ in 0..50 {
+                    let dir = Vec3::new(rng.f32() - 0.5, rng.f32() - 0.5, rng.f32() - 0.5)
+                        .normalize_or(Vec3::X);
+                    let target = Vec3::new(rng.f32(), rng.f32(), rng.f32()) * size;
+                    let ray = crate::geometry::Ray {
+                        origin: target - dir * (size.length() + 1.0),
+                        dir,
+                    };
+                    let nearest = |surface_only: bool| {
+                        (0..seen.len())
+                            .filter(|&i| {
+                                skip.is_occupied_index(i) && (!surface_only || seen[i] == 1)
+                            })
+                            .filter_map(|i| cell_box(i).intersect(&ray))
+                            .map(|(t, _)| t)
+                            .fold(f32::INFINITY, f32::min)
+                    };
+                    assert_eq!(nearest(true), nearest(false), "{count} ray {ray:?}");
+                }
+            }
+        }
+        assert!(left_out > 0, "no grid had interior cells");
     }
 
     /// `steady` reads, for every occupied cell, the macrocell grid's

@@ -348,7 +348,11 @@ impl FramePlan {
             // The macrocells the TF makes visible: a sample before the
             // nearest of them along its ray lies in an empty one.
             if ProxyDepth::pays(skip.occupied_count(), &self.rect) {
-                let runs = CellRuns::occupied(skip);
+                let runs = if self.eye_outside(grid, skip) {
+                    CellRuns::surface(skip)
+                } else {
+                    CellRuns::occupied(skip)
+                };
                 self.proxy = Some(ProxyDepth::build(&self.camera, self.rect, grid, runs));
                 self.proxy_moves_samples = true;
             }
@@ -371,6 +375,22 @@ impl FramePlan {
                 .map(|&l| cache.light_proxy(&self.prepared, l, grid, cells))
                 .collect();
         }
+    }
+
+    /// Whether every camera ray starts outside the skip grid's cells (a
+    /// perspective eye outside them, with a voxel to spare), so that the
+    /// first occupied cell a ray meets is one of
+    /// [`SkipGrid::surface_runs`].
+    fn eye_outside(&self, grid: &crate::volume::Grid, skip: &SkipGrid) -> bool {
+        use crate::camera::Projection;
+        if self.camera.projection() != Projection::Perspective {
+            return false;
+        }
+        let side = skip.cell_side();
+        let a = grid.voxel_to_world(glam::Vec3::splat(-1.0));
+        let b = grid.voxel_to_world(skip.count().as_vec3() * side + 1.0);
+        let cells = Aabb::new(a.min(b), a.max(b));
+        !cells.contains(self.camera.position())
     }
 
     /// The integrators' view of this frame for the concretely typed

@@ -270,6 +270,16 @@ impl<'a> CellRuns<'a> {
             side: skip.cell_side(),
         }
     }
+
+    /// Those of them on the surface of the occupied region: for rays from
+    /// outside the grid, the same nearest occupied cell
+    /// ([`SkipGrid::surface_runs`]).
+    pub fn surface(skip: &'a SkipGrid) -> Self {
+        CellRuns {
+            runs: skip.surface_runs(),
+            side: skip.cell_side(),
+        }
+    }
 }
 
 /// The box of a run of cells of side `side` along z (`(first cell,
