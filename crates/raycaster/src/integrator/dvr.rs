@@ -1,7 +1,7 @@
 //! Direct volume rendering: front-to-back compositing with ERT and ESS, and
 //! optionally gradient-magnitude opacity ([`GradientOpacity`]).
 
-use glam::{UVec3, Vec3, Vec4};
+use glam::{UVec3, Vec3, Vec3A, Vec4};
 
 use super::batch::SampleBatch;
 use super::{Fragment, FrameContext, GradientOpacity, Integrator, Occupancy, RaySegment, Span};
@@ -180,8 +180,11 @@ impl DvrState {
         if e.w <= 0.0 {
             return n as u64;
         }
-        let rgb = e.truncate();
-        let (mut color, mut alpha) = (self.color, self.alpha);
+        // The colour in a whole vector register of its own, so the compiler
+        // does not pack the opacity beside it: the opacity's chain from
+        // sample to sample then has no shuffles in it.
+        let rgb = Vec3A::from(e.truncate());
+        let (mut color, mut alpha) = (Vec3A::from(self.color), self.alpha);
         let mut taken = n as u64;
         for i in 0..n {
             let w = 1.0 - alpha;
@@ -193,7 +196,7 @@ impl DvrState {
                 break;
             }
         }
-        self.color = color;
+        self.color = color.into();
         self.alpha = alpha;
         taken
     }
@@ -232,7 +235,8 @@ impl<V: Volume, const GO: bool> Kernel for March<'_, '_, V, GO> {
         let volume = ctx.volume;
         let lut = ctx.lut;
         let shading = ctx.shading;
-        let mut color = state.color;
+        // A whole register for the colour, as in `composite_constant`.
+        let mut color = Vec3A::from(state.color);
         let mut alpha = state.alpha;
         let mut taken = (end - k) as u64;
         let mut done = false;
@@ -300,7 +304,7 @@ impl<V: Volume, const GO: bool> Kernel for March<'_, '_, V, GO> {
                     rgb = rgb * diffuse + Vec3::splat(e.w * spec);
                 }
                 let w = 1.0 - alpha;
-                color += w * rgb;
+                color += w * Vec3A::from(rgb);
                 alpha += w * e.w;
                 if alpha >= threshold {
                     done = true;
@@ -310,7 +314,7 @@ impl<V: Volume, const GO: bool> Kernel for March<'_, '_, V, GO> {
             }
             b += len as u32;
         }
-        state.color = color;
+        state.color = color.into();
         state.alpha = alpha;
         state.terminated |= done;
         taken
