@@ -309,7 +309,7 @@ impl SkipGrid {
             let b = bits.trailing_zeros() as usize;
             bits &= bits - 1;
             let i = w * 64 + b;
-            let (x, y, z) = (i / (ny * nz), i / nz % ny, i % nz);
+            let [x, y, z] = cell_of_index(n, i).to_array().map(|c| c as usize);
             let inside = x > 0
                 && y > 0
                 && z > 0
@@ -331,12 +331,7 @@ impl SkipGrid {
 
     /// The cell of index `i`.
     fn cell_at(&self, i: usize) -> UVec3 {
-        let (ny, nz) = (self.count.y as usize, self.count.z as usize);
-        UVec3::new(
-            (i / (ny * nz)) as u32,
-            (i / nz % ny) as u32,
-            (i % nz) as u32,
-        )
+        cell_of_index(self.count, i)
     }
 
     fn list_occupied_runs(&self) -> Vec<(UVec3, u32)> {
@@ -721,6 +716,16 @@ fn chessboard_distance(d: &mut [u8], n: UVec3) {
     pass(false);
 }
 
+/// The cell of index `i` in a grid of `count` cells stored z fastest.
+fn cell_of_index(count: UVec3, i: usize) -> UVec3 {
+    let (ny, nz) = (count.y as usize, count.z as usize);
+    UVec3::new(
+        (i / (ny * nz)) as u32,
+        (i / nz % ny) as u32,
+        (i % nz) as u32,
+    )
+}
+
 /// `out[z] = min(row[z − 1], row[z], row[z + 1])`, ignoring missing neighbours.
 fn min3(row: &[u8], out: &mut [u8]) {
     out.copy_from_slice(row);
@@ -816,12 +821,7 @@ mod tests {
                         })
                         .collect();
                     for (i, r) in cells.ranges.iter_mut().enumerate() {
-                        let (ny, nz) = (count.y as usize, count.z as usize);
-                        let c = Vec3::new(
-                            (i / (ny * nz)) as f32,
-                            (i / nz % ny) as f32,
-                            (i % nz) as f32,
-                        );
+                        let c = cell_of_index(count, i).as_vec3();
                         let inside = balls.iter().any(|&(o, rad)| (c + 0.5).distance(o) < rad);
                         *r = if inside { (1.0, 1.0) } else { (0.0, 0.0) };
                     }
