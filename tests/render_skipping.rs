@@ -40,8 +40,8 @@ fn ess_changes_nothing_on_single_rays() {
                         };
                         let (on, n_on) = lab.dvr_state(ray, true).unwrap();
                         assert_eq!(
-                            (off.color, off.alpha),
-                            (on.color, on.alpha),
+                            (off.color, off.transmittance),
+                            (on.color, on.transmittance),
                             "{name} step {step}: DVR differs with ESS on {ray:?}"
                         );
                         assert_eq!(lab.mip_max(ray, false), lab.mip_max(ray, true), "{ray:?}");
@@ -100,11 +100,11 @@ fn cells_composited_without_sampling_give_the_marched_bits() {
                 };
                 let (on, _) = lab.dvr_state(&ray, true).unwrap();
                 assert_eq!(
-                    (off.color, off.alpha, off.terminated),
-                    (on.color, on.alpha, on.terminated),
+                    (off.color, off.transmittance, off.terminated),
+                    (on.color, on.transmittance, on.terminated),
                     "shaded {shaded} step {step}: DVR differs with ESS on {ray:?}"
                 );
-                seen += (off.alpha > 0.5) as u32;
+                seen += (off.alpha() > 0.5) as u32;
             }
             assert!(seen > 300, "only {seen} rays met the blocks");
         }

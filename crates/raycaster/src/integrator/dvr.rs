@@ -17,18 +17,34 @@ const MAX_GATHER: u32 = 64 * LANES as u32;
 const ZERO_GRADIENTS: CornerGradients = [Vec4::ZERO; 8];
 
 /// Accumulated colour (premultiplied) and opacity of a ray.
-#[derive(Debug, Clone, Copy, Default)]
+///
+/// The opacity is kept as the transmittance `T = 1 − A`: SPEC §5's
+/// `C += (1 − A)·α·c; A += (1 − A)·α` is `C += T·α·c; T ·= 1 − α`, whose
+/// chain from sample to sample is one multiplication instead of a
+/// subtraction, a multiplication and an addition.
+#[derive(Debug, Clone, Copy)]
 pub struct DvrState {
     /// `C`, premultiplied.
     pub color: Vec3,
-    /// `A`.
-    pub alpha: f32,
+    /// `T = 1 − A`.
+    pub transmittance: f32,
     /// Set once `A` reached the ERT threshold.
     pub terminated: bool,
     /// How many samples of consecutive runs [`Integrator::integrate`]
     /// gathers before marching them (0: one batch). It doubles with every
     /// march of the ray, across the spans of a ray split into bricks.
     pub gather: u32,
+}
+
+impl Default for DvrState {
+    fn default() -> Self {
+        DvrState {
+            color: Vec3::ZERO,
+            transmittance: 1.0,
+            terminated: false,
+            gather: 0,
+        }
+    }
 }
 
 impl Integrator for DvrState {
@@ -49,7 +65,8 @@ impl Integrator for DvrState {
     fn integrate<V: Volume>(&mut self, span: Span<'_, V>) -> u64 {
         let (ctx, seg) = (span.ctx, span.seg);
         let mut taken = 0u64;
-        let threshold = ctx.ert.unwrap_or(f32::INFINITY);
+        // ERT stops a ray once `A >= threshold`, that is once `T <= 1 − threshold`.
+        let t_stop = ctx.ert.map_or(f32::NEG_INFINITY, |a| 1.0 - a);
         // Samples `pending.0..pending.1` still to march, and how many of
         // them to gather before marching: it starts at one batch and doubles
         // with every march, so a ray stopped by a surface at its entry does
@@ -90,7 +107,7 @@ impl Integrator for DvrState {
                 continue;
             }
             if pending.0 < pending.1 {
-                taken += self.march(ctx, seg, pending.0, pending.1, threshold);
+                taken += self.march(ctx, seg, pending.0, pending.1, t_stop);
                 if self.terminated {
                     return taken;
                 }
@@ -102,14 +119,14 @@ impl Integrator for DvrState {
                 pending.1 = run.end;
             } else if let RunKind::Cell(i) = run.kind {
                 let v = ctx.macrocells.ranges[i].0;
-                taken += self.composite_constant(ctx.lut.lookup(v), run.end - run.start, threshold);
+                taken += self.composite_constant(ctx.lut.lookup(v), run.end - run.start, t_stop);
                 if self.terminated {
                     return taken;
                 }
                 pending = (run.end, run.end);
             }
         }
-        taken + self.march(ctx, seg, pending.0, pending.1, threshold)
+        taken + self.march(ctx, seg, pending.0, pending.1, t_stop)
     }
 
     fn is_done(&self) -> bool {
@@ -117,7 +134,7 @@ impl Integrator for DvrState {
     }
 
     fn resolve<V: Volume>(&self, _ctx: &FrameContext<'_, V>) -> Vec4 {
-        self.color.extend(self.alpha)
+        self.color.extend(self.alpha())
     }
 
     /// The premultiplied colour and opacity, composited "over" later.
@@ -130,6 +147,12 @@ impl Integrator for DvrState {
 }
 
 impl DvrState {
+    /// The accumulated opacity `A = 1 − T`.
+    #[inline(always)]
+    pub fn alpha(&self) -> f32 {
+        1.0 - self.transmittance
+    }
+
     /// Samples `k..end` in batches, compositing front to back, in the best
     /// instruction set. Returns the samples taken.
     #[inline(always)]
@@ -139,7 +162,7 @@ impl DvrState {
         seg: &RaySegment,
         k: u32,
         end: u32,
-        threshold: f32,
+        t_stop: f32,
     ) -> u64 {
         if k >= end {
             return 0;
@@ -153,7 +176,7 @@ impl DvrState {
                 seg,
                 k,
                 end,
-                threshold,
+                t_stop,
                 go: GradientOpacity::default(),
             }),
             Some(go) => simd::dispatch(March::<V, true> {
@@ -162,7 +185,7 @@ impl DvrState {
                 seg,
                 k,
                 end,
-                threshold,
+                t_stop,
                 go,
             }),
         }
@@ -176,7 +199,7 @@ impl DvrState {
     /// faster on runs the length of a macrocell. Returns the samples
     /// composited.
     #[inline]
-    fn composite_constant(&mut self, e: Vec4, n: u32, threshold: f32) -> u64 {
+    fn composite_constant(&mut self, e: Vec4, n: u32, t_stop: f32) -> u64 {
         if e.w <= 0.0 {
             return n as u64;
         }
@@ -184,20 +207,20 @@ impl DvrState {
         // does not pack the opacity beside it: the opacity's chain from
         // sample to sample then has no shuffles in it.
         let rgb = Vec3A::from(e.truncate());
-        let (mut color, mut alpha) = (Vec3A::from(self.color), self.alpha);
+        let (mut color, mut t) = (Vec3A::from(self.color), self.transmittance);
+        let keep = 1.0 - e.w;
         let mut taken = n as u64;
         for i in 0..n {
-            let w = 1.0 - alpha;
-            color += w * rgb;
-            alpha += w * e.w;
-            if alpha >= threshold {
+            color += t * rgb;
+            t *= keep;
+            if t <= t_stop {
                 self.terminated = true;
                 taken = i as u64 + 1;
                 break;
             }
         }
         self.color = color.into();
-        self.alpha = alpha;
+        self.transmittance = t;
         taken
     }
 }
@@ -210,7 +233,7 @@ struct March<'a, 'c, V: Volume, const GO: bool> {
     seg: &'a RaySegment,
     k: u32,
     end: u32,
-    threshold: f32,
+    t_stop: f32,
     go: GradientOpacity,
 }
 
@@ -229,7 +252,7 @@ impl<V: Volume, const GO: bool> Kernel for March<'_, '_, V, GO> {
             seg,
             k,
             end,
-            threshold,
+            t_stop,
             go,
         } = self;
         let volume = ctx.volume;
@@ -237,7 +260,7 @@ impl<V: Volume, const GO: bool> Kernel for March<'_, '_, V, GO> {
         let shading = ctx.shading;
         // A whole register for the colour, as in `composite_constant`.
         let mut color = Vec3A::from(state.color);
-        let mut alpha = state.alpha;
+        let mut t = state.transmittance;
         let mut taken = (end - k) as u64;
         let mut done = false;
         let inv_two_spacing = 0.5 / volume.grid().spacing;
@@ -303,10 +326,9 @@ impl<V: Volume, const GO: bool> Kernel for March<'_, '_, V, GO> {
                 {
                     rgb = rgb * diffuse + Vec3::splat(e.w * spec);
                 }
-                let w = 1.0 - alpha;
-                color += w * Vec3A::from(rgb);
-                alpha += w * e.w;
-                if alpha >= threshold {
+                color += t * Vec3A::from(rgb);
+                t *= 1.0 - e.w;
+                if t <= t_stop {
                     done = true;
                     taken = (b - k) as u64 + l as u64 + 1;
                     break 'march;
@@ -315,7 +337,7 @@ impl<V: Volume, const GO: bool> Kernel for March<'_, '_, V, GO> {
             b += len as u32;
         }
         state.color = color.into();
-        state.alpha = alpha;
+        state.transmittance = t;
         state.terminated |= done;
         taken
     }
