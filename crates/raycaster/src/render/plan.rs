@@ -6,7 +6,7 @@
 
 use std::sync::Arc;
 
-use super::proxy::{CellRuns, LightProxy, ProxyDepth};
+use super::proxy::{CellRuns, Coverage, LightProxy, ProxyDepth};
 use crate::accel::{IsoCells, SkipGrid};
 use crate::camera::{Camera, CameraFrame, PixelRect};
 use crate::clip::ClipRegion;
@@ -353,7 +353,13 @@ impl FramePlan {
                 } else {
                     CellRuns::occupied(skip)
                 };
-                self.proxy = Some(ProxyDepth::build(&self.camera, self.rect, grid, runs));
+                self.proxy = Some(ProxyDepth::build(
+                    &self.camera,
+                    self.rect,
+                    grid,
+                    runs,
+                    Coverage::Rays,
+                ));
                 self.proxy_moves_samples = true;
             }
             return;
@@ -366,7 +372,13 @@ impl FramePlan {
         }
         if ProxyDepth::pays(cells.straddling_count(), &self.rect) {
             let runs = CellRuns::straddling(cells);
-            self.proxy = Some(ProxyDepth::build(&self.camera, self.rect, grid, runs));
+            self.proxy = Some(ProxyDepth::build(
+                &self.camera,
+                self.rect,
+                grid,
+                runs,
+                Coverage::Blocks,
+            ));
         }
         if options.shadows && options.shading {
             self.light_proxies = self
