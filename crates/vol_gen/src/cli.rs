@@ -69,10 +69,10 @@ Layouts: linear (z fastest) or bricked (alias z): cubic bricks of --block-size
 B in 2..=255 overlapping by one voxel (the .vol format in the README).
 
 The same arguments and --seed give the same bytes, whatever the thread count;
-without --seed a random seed is used and printed. The file is written under a
-temporary name in the same directory and renamed when complete; Ctrl-C or an
-error leaves no file behind (plume: each frame so, and an error or Ctrl-C
-removes the frames already written).
+without --seed a random seed is used and printed (but not with --quiet). The
+file is written under a temporary name in the same directory and renamed when
+complete; Ctrl-C or an error leaves no file behind (plume: each frame so, and
+an error or Ctrl-C removes the frames already written).
 
 Example (150 frames of a simulated exhaust plume, 1.2 GiB):
   vol_gen --dims 128,128,128 --generator plume --frames 150 --seed 1 \\
@@ -185,7 +185,7 @@ pub struct Cli {
     #[arg(long, short = 'f')]
     pub force: bool,
 
-    /// No progress bar or summary
+    /// Print nothing but errors: no progress bar, summary or random seed
     #[arg(long, short = 'q')]
     pub quiet: bool,
 
@@ -209,7 +209,7 @@ pub struct Config {
     pub output: PathBuf,
     /// Overwrite an existing file.
     pub force: bool,
-    /// No progress bar or summary.
+    /// Print nothing but errors (no progress bar, summary or random seed).
     pub quiet: bool,
     /// Worker threads, or all cores.
     pub threads: Option<usize>,

@@ -168,7 +168,7 @@ pub(crate) fn check_output(path: &Path, force: bool, need: u64) -> Result<()> {
 }
 
 /// Runs the command line `cli`: prints the seed when it was random, a
-/// progress bar and a summary (unless `--quiet`).
+/// progress bar and a summary (none of them with `--quiet`).
 pub fn run(cli: Cli) -> Result<Summary> {
     let config = Config::from_cli(cli)?;
     if let Some(n) = config.threads {
@@ -188,7 +188,7 @@ pub fn run(cli: Cli) -> Result<Summary> {
     }
     let job = Job::prepare(config)?;
     let c = job.config();
-    if c.seed_was_random {
+    if c.seed_was_random && !c.quiet {
         eprintln!(
             "vol_gen: seed {} (pass --seed {} to repeat this volume)",
             c.setup.seed, c.setup.seed

@@ -173,6 +173,10 @@ fn a_random_seed_is_printed_and_repeats_the_volume() {
         "",
     ));
     assert!(std::fs::read(&a).unwrap() != std::fs::read(&c).unwrap());
+    // `--quiet` prints nothing on success, a random seed neither.
+    let d = dir.path("d.vol");
+    let out = run_ok(&args_around(&format!("{shapes} -q -o"), &d, ""));
+    assert_eq!(stderr(&out), "");
 }
 
 #[test]
