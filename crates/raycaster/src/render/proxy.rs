@@ -379,7 +379,8 @@ fn fill_rays(
     // move along gets ±f32::MAX instead of ±∞, so that a box face through
     // the eye gives 0 rather than NaN (0·∞), and the slab stays right: all
     // of the ray's parameters when the eye is between the planes, none
-    // otherwise.
+    // otherwise (with the eye on a plane, either: a box is grown by
+    // `MARGIN`, so such a ray passes that far outside its cells).
     let mut inv = [vec![0.0f32; n], vec![0.0f32; n], vec![0.0f32; n]];
     for start in (0..n).step_by(LANES) {
         let pixel = |l: usize| {
