@@ -75,9 +75,9 @@ const BLOCK: u32 = 2;
 /// How a box is drawn into the depth buffer.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub enum Coverage {
-    /// Over the blocks of [`BLOCK`]×[`BLOCK`] pixels its projected
-    /// rectangle touches, at the eye's distance to the box: two numbers a
-    /// box, for boxes a few pixels across (the exact iso mode's cells).
+    /// Over the blocks of 2×2 pixels its projected rectangle touches, at
+    /// the eye's distance to the box: two numbers a box, for boxes a few
+    /// pixels across (the exact iso mode's cells).
     Blocks,
     /// Pixel by pixel, where the pixel's own ray enters the box (a slab
     /// test), and not at all where that ray misses it: for boxes many
