@@ -192,8 +192,8 @@ impl DvrState {
     }
 
     /// Composites `n` samples that all look up as `e` (premultiplied,
-    /// unshaded), one by one with the marching loop's operations in its
-    /// order, so with the same bits and the same ERT sample: skipping on and
+    /// unshaded), one by one with the marching loop's [`composite`], so
+    /// with the same bits and the same ERT sample: skipping on and
     /// off give the same pixels (SPEC §5). A closed form (`T·(1 − α)ⁿ`, with
     /// a logarithm for the ERT sample) moved pixels by a level and was not
     /// faster on runs the length of a macrocell. Returns the samples
@@ -208,12 +208,9 @@ impl DvrState {
         // sample to sample then has no shuffles in it.
         let rgb = Vec3A::from(e.truncate());
         let (mut color, mut t) = (Vec3A::from(self.color), self.transmittance);
-        let keep = 1.0 - e.w;
         let mut taken = n as u64;
         for i in 0..n {
-            color += t * rgb;
-            t *= keep;
-            if t <= t_stop {
+            if composite(&mut color, &mut t, rgb, e.w, t_stop) {
                 self.terminated = true;
                 taken = i as u64 + 1;
                 break;
@@ -223,6 +220,17 @@ impl DvrState {
         self.transmittance = t;
         taken
     }
+}
+
+/// Composites one sample of premultiplied colour `rgb` and opacity `alpha`
+/// behind the ray's colour and transmittance `t` (SPEC §5 with `T = 1 −
+/// A`); true once ERT stops the ray (`t <= t_stop`). The one place both
+/// the marches and the constant runs composite, so they give the same bits.
+#[inline(always)]
+fn composite(color: &mut Vec3A, t: &mut f32, rgb: Vec3A, alpha: f32, t_stop: f32) -> bool {
+    *color += *t * rgb;
+    *t *= 1.0 - alpha;
+    *t <= t_stop
 }
 
 /// [`DvrState::march`]'s loop as a [`Kernel`]; `GO`: with gradient opacity
@@ -326,9 +334,7 @@ impl<V: Volume, const GO: bool> Kernel for March<'_, '_, V, GO> {
                 {
                     rgb = rgb * diffuse + Vec3::splat(e.w * spec);
                 }
-                color += t * Vec3A::from(rgb);
-                t *= 1.0 - e.w;
-                if t <= t_stop {
+                if composite(&mut color, &mut t, Vec3A::from(rgb), e.w, t_stop) {
                     done = true;
                     taken = (b - k) as u64 + l as u64 + 1;
                     break 'march;

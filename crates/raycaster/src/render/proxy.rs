@@ -70,7 +70,10 @@ const MARGIN: f32 = 0.01;
 /// square of this many pixels a side. Coarser means fewer blocks per box
 /// to draw (a straddling cell spans only a few pixels), at the price of
 /// rays within a block of the silhouette walked in vain.
-const BLOCK: u32 = 2;
+const BLOCK: u32 = 1 << BLOCK_SHIFT;
+
+/// `BLOCK = 1 << BLOCK_SHIFT`: the buffer's indices are shifted pixels.
+const BLOCK_SHIFT: u32 = 1;
 
 /// How a box is drawn into the depth buffer.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -130,7 +133,7 @@ impl ProxyDepth {
         coverage: Coverage,
     ) -> Self {
         let per_ray = coverage == Coverage::Rays && frame.projection() == Projection::Perspective;
-        let shift = if per_ray { 0 } else { BLOCK.trailing_zeros() };
+        let shift = if per_ray { 0 } else { BLOCK_SHIFT };
         let block = 1 << shift;
         // The buffer's blocks over `rect`.
         let (w, h) = (
@@ -350,7 +353,7 @@ fn box_of(
         return None;
     }
     Some(Drawn {
-        blocks: blocks_of(&r, rect, BLOCK.trailing_zeros()),
+        blocks: blocks_of(&r, rect, BLOCK_SHIFT),
         t: nearest_t(frame, lo, hi),
         lo,
         hi,
@@ -382,17 +385,17 @@ fn fill_rays(
     // otherwise (with the eye on a plane, either: a box is grown by
     // `MARGIN`, so such a ray passes that far outside its cells).
     let mut inv = [vec![0.0f32; n], vec![0.0f32; n], vec![0.0f32; n]];
-    for start in (0..n).step_by(LANES) {
-        let pixel = |l: usize| {
-            let p = (start + l).min(n - 1);
-            (rect.x0 + (p % w) as u32, rect.y0 + y0 + (p / w) as u32)
-        };
-        let i: [u32; LANES] = std::array::from_fn(|l| pixel(l).0);
-        let j: [u32; LANES] = std::array::from_fn(|l| pixel(l).1);
-        let d = frame.perspective_dirs(&i, &j);
-        for (a, inv) in inv.iter_mut().enumerate() {
-            for l in 0..LANES.min(n - start) {
-                inv[start + l] = d[a][l].recip().clamp(-f32::MAX, f32::MAX);
+    for row in 0..(y1 - y0) as usize {
+        let j = [rect.y0 + y0 + row as u32; LANES];
+        for x in (0..w).step_by(LANES) {
+            // Lanes past the row's end repeat its last pixel.
+            let i: [u32; LANES] = std::array::from_fn(|l| rect.x0 + (x + l).min(w - 1) as u32);
+            let d = frame.perspective_dirs(&i, &j);
+            let at = row * w + x;
+            for (a, inv) in inv.iter_mut().enumerate() {
+                for l in 0..LANES.min(w - x) {
+                    inv[at + l] = d[a][l].recip().clamp(-f32::MAX, f32::MAX);
+                }
             }
         }
     }
@@ -979,7 +982,7 @@ mod tests {
                     rect,
                     grid: &grid,
                     runs: CellRuns { runs: some, side },
-                    shift: BLOCK.trailing_zeros(),
+                    shift: BLOCK_SHIFT,
                 });
                 assert_eq!(got.len(), want.len(), "{eye} {n} {side}");
                 for (g, w) in got.iter().zip(&want) {
