@@ -26,6 +26,10 @@ use super::RaySegment;
 use crate::simd::{self, Isa, Kernel, LANES};
 use crate::volume::{Corners, Grid, Volume, split_coord};
 
+/// How many batches ahead of the one it fills [`SampleBatch::fill`] asks the
+/// memory for a cell (6 measured no better than 4).
+pub const PREFETCH_BATCHES: u32 = 4;
+
 /// Up to [`LANES`] consecutive samples `k..k + len` of one ray: their cells,
 /// fractions, corners and interpolated values, lane `l` holding sample
 /// `k + l`. Lanes at and past `len` hold values that mean nothing. Filling
@@ -100,10 +104,10 @@ impl SampleBatch {
                 self.frac[a][l] = f;
             }
         }
-        // The corners four batches ahead are on their way while this one
-        // works (rays through a large volume miss the cache on most new
-        // cells).
-        volume.prefetch(seg.pos(k + 4 * LANES as u32));
+        // The corners `PREFETCH_BATCHES` batches ahead are on their way
+        // while this one works (rays through a large volume miss the cache
+        // on most new cells).
+        volume.prefetch(seg.pos(k + PREFETCH_BATCHES * LANES as u32));
         // Corners: lane l starts a new cell when its cell differs from lane
         // l − 1's (lane 0 compares with the previous fill's last lane). The
         // cells are loaded in lane order, each corner splatted into the lanes

@@ -13,6 +13,11 @@ use crate::volume::{CornerGradients, Volume, corner_gradients, interpolate_gradi
 /// before marching them.
 const MAX_GATHER: u32 = 64 * LANES as u32;
 
+/// How many of a marched run's first samples [`DvrState::integrate`] asks
+/// the memory for when it meets the run (one cell per batch; the march
+/// asks for the rest, [`SampleBatch::fill`]'s prefetch distance ahead).
+const PREFETCH_SAMPLES: u32 = super::batch::PREFETCH_BATCHES * LANES as u32;
+
 /// Corner gradients of a cell where every difference is zero.
 const ZERO_GRADIENTS: CornerGradients = [Vec4::ZERO; 8];
 
@@ -102,6 +107,17 @@ impl Integrator for DvrState {
                 RunKind::Cell(i) => marched(i),
                 RunKind::Unknown => true,
             };
+            if march {
+                // The cells of the run's first batches are on their way
+                // while the runs up to it are walked and marched: a march
+                // asks for its samples a few batches ahead, which leaves
+                // its own first batches to wait for memory.
+                let mut k = run.start;
+                while k < run.end.min(run.start + PREFETCH_SAMPLES) {
+                    ctx.volume.prefetch(seg.pos(k));
+                    k += LANES as u32;
+                }
+            }
             if march && run.start == pending.1 && pending.1 - pending.0 < gather {
                 pending.1 = run.end;
                 continue;
@@ -285,7 +301,7 @@ impl<V: Volume, const GO: bool> Kernel for March<'_, '_, V, GO> {
             // it once (one call with a flag for both measured more
             // instructions).
             if GO || shading.is_some() {
-                volume.prefetch_wings(seg.pos(b + 4 * LANES as u32));
+                volume.prefetch_wings(seg.pos(b + PREFETCH_SAMPLES));
             }
             let (x, visible) = lut.visible_lanes(isa, &batch.value);
             let mut lanes = visible & ((1 << len) - 1);
