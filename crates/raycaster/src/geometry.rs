@@ -16,6 +16,19 @@ pub(crate) fn max_to(a: f32, b: f32) -> f32 {
     if a > b { a } else { b }
 }
 
+/// One axis of the slab method: `(t0, t1)` narrowed to the parameters at
+/// which a ray with inverse direction component `inv` lies between the
+/// planes at offsets `lo` and `hi` from its origin along that axis. Plain
+/// comparisons (one `minss`/`maxss` each, and vectorised in lane-wise
+/// loops) rather than `f32::min`/`max`, whose NaN handling triples the
+/// instructions; callers keep NaN out (no `0·∞`).
+#[inline(always)]
+pub(crate) fn clip_slab(lo: f32, hi: f32, inv: f32, (t0, t1): (f32, f32)) -> (f32, f32) {
+    let (a, b) = (lo * inv, hi * inv);
+    let (near, far) = if a < b { (a, b) } else { (b, a) };
+    (max_to(near, t0), min_to(far, t1))
+}
+
 /// A ray `origin + t·dir`; renderers keep `dir` normalised so that `t` is a
 /// world-space distance.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -90,16 +103,8 @@ impl Aabb {
             if d == 0.0 {
                 return !(o < lo || o > hi);
             }
-            let inv = 1.0 / d;
-            let t0 = (lo - o) * inv;
-            let t1 = (hi - o) * inv;
-            // Plain comparisons (one `minss`/`maxss` each) rather than
-            // `f32::min`/`max`, whose NaN handling triples the instructions
-            // on every ray's critical path; no operand here is NaN for a
-            // finite ray (`d` is not 0).
-            let (near, far) = if t0 < t1 { (t0, t1) } else { (t1, t0) };
-            t.0 = if near > t.0 { near } else { t.0 };
-            t.1 = if far < t.1 { far } else { t.1 };
+            // No operand is NaN for a finite ray (`d` is not 0).
+            *t = clip_slab(lo - o, hi - o, 1.0 / d, *t);
             true
         }
         let (o, d) = (ray.origin, ray.dir);
@@ -126,11 +131,7 @@ impl Aabb {
         for a in 0..3 {
             let (o, lo, hi) = (origin[a], self.min[a], self.max[a]);
             for l in 0..N {
-                let inv = 1.0 / dir[a][l];
-                let (a0, a1) = ((lo - o) * inv, (hi - o) * inv);
-                let (near, far) = if a0 < a1 { (a0, a1) } else { (a1, a0) };
-                t0[l] = if near > t0[l] { near } else { t0[l] };
-                t1[l] = if far < t1[l] { far } else { t1[l] };
+                (t0[l], t1[l]) = clip_slab(lo - o, hi - o, 1.0 / dir[a][l], (t0[l], t1[l]));
             }
         }
         (t0, t1)

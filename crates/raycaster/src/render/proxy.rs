@@ -53,6 +53,7 @@ use parking_lot::Mutex;
 use super::bins::Bins;
 use crate::accel::{IsoCells, SkipGrid};
 use crate::camera::{AffineProjection, Camera, CameraFrame, PixelRect, Projection};
+use crate::geometry::clip_slab;
 use crate::integrator::{BLOCK as RAY_BLOCK, PACKET_H, PACKET_W};
 use crate::simd::{self, Isa, Kernel};
 use crate::volume::Grid;
@@ -414,17 +415,13 @@ fn fill_rays(
             );
             let lanes = out[span].iter_mut().zip(ix).zip(iy).zip(iz);
             // The slab test, from the box's lower bound, without a branch
-            // (the compiler vectorises it): NaN-free (see above), so plain
-            // comparisons make the minima and maxima.
+            // (the compiler vectorises it): NaN-free (see above).
             for (((d, &ix), &iy), &iz) in lanes {
-                let (mut t0, mut t1) = (b.t, f32::INFINITY);
+                let mut t = (b.t, f32::INFINITY);
                 for (a, inv) in [ix, iy, iz].into_iter().enumerate() {
-                    let (ta, tb) = (lo[a] * inv, hi[a] * inv);
-                    let (near, far) =
-                        (if ta < tb { ta } else { tb }, if ta < tb { tb } else { ta });
-                    t0 = if near > t0 { near } else { t0 };
-                    t1 = if far < t1 { far } else { t1 };
+                    t = clip_slab(lo[a], hi[a], inv, t);
                 }
+                let (t0, t1) = t;
                 let t = if t0 <= t1 { t0 } else { f32::INFINITY };
                 *d = if t < *d { t } else { *d };
             }
