@@ -83,6 +83,13 @@ pub struct SkipGrid {
     /// The occupied cells on the surface of the occupied region as runs
     /// along z ([`SkipGrid::surface_runs`]), listed on first use.
     surface_runs: OnceLock<Vec<(UVec3, u32)>>,
+    /// Per 64 cells (as `occupied`), the surface cells' bits
+    /// ([`SkipGrid::surface_runs`]), found on first use.
+    surface: OnceLock<Vec<u64>>,
+    /// [`SkipGrid::visible_surface_runs`], found on first use.
+    visible_surface: OnceLock<NarrowedRuns>,
+    /// [`SkipGrid::visible_occupied_runs`], found on first use.
+    visible_occupied: OnceLock<NarrowedRuns>,
     /// Per 64 cells (as `occupied`), two words of flags of the occupied
     /// ones: uniform, and flat under the TF ([`SkipGrid::with_steady`]);
     /// empty when not built. A DVR ray asks for both at every occupied
@@ -91,6 +98,11 @@ pub struct SkipGrid {
     /// and uniform flags (a byte) do.
     steady: Vec<[u64; 2]>,
 }
+
+/// Runs of cells along z (first cell, length) and, per run, how far its
+/// box is narrowed (voxels: from its lower corner up and from its upper
+/// corner down, per axis).
+type NarrowedRuns = (Vec<(UVec3, u32)>, Vec<[u8; 6]>);
 
 /// The most cells in one of [`SkipGrid::occupied_runs`]: a run is one box
 /// to the proxy depths, which bound every ray meeting it by the box's
@@ -176,6 +188,9 @@ impl SkipGrid {
             iso_cells: None,
             runs: OnceLock::new(),
             surface_runs: OnceLock::new(),
+            surface: OnceLock::new(),
+            visible_surface: OnceLock::new(),
+            visible_occupied: OnceLock::new(),
             steady: Vec::new(),
         }
     }
@@ -284,17 +299,155 @@ impl SkipGrid {
     /// nearest entry into an occupied one. Listed on first use, then kept.
     pub fn surface_runs(&self) -> &[(UVec3, u32)] {
         self.surface_runs.get_or_init(|| {
-            use rayon::prelude::*;
-            let surface: Vec<u64> = (0..self.occupied.len())
-                .into_par_iter()
-                .map(|w| self.surface_bits(w))
-                .collect();
             let mut out = Vec::new();
-            super::bit_runs(&surface, self.count.z as usize, MAX_RUN, |first, len| {
-                out.push((self.cell_at(first), len))
-            });
+            super::bit_runs(
+                self.surface_words(),
+                self.count.z as usize,
+                MAX_RUN,
+                |first, len| out.push((self.cell_at(first), len)),
+            );
             out
         })
+    }
+
+    /// The surface cells' bits, per 64 cells as `occupied`.
+    fn surface_words(&self) -> &[u64] {
+        self.surface.get_or_init(|| {
+            use rayon::prelude::*;
+            (0..self.occupied.len())
+                .into_par_iter()
+                .map(|w| self.surface_bits(w))
+                .collect()
+        })
+    }
+
+    /// [`SkipGrid::surface_runs`], each with its box narrowed to where a
+    /// ray from outside the grid can first meet a visible sample: per run,
+    /// the offsets (voxels, in each axis from the run's lower corner up and
+    /// from its upper corner down) of the bounding box of its cells'
+    /// `visible` boxes (the voxel box of the interpolation cells of a
+    /// macrocell the TF can make visible, or `None`) and of the faces,
+    /// edges and corners they share with interior occupied cells (which
+    /// rays reach only through a surface cell); runs whose box is empty
+    /// are left out. Why that is enough: a ray meets the occupied region
+    /// first in a surface cell; from there it reaches its first visible
+    /// sample in that cell (inside the cell's visible box), or through a
+    /// part it shares with an interior cell (inside the box), or through
+    /// another surface cell, to which the same applies, or through empty
+    /// cells into another surface cell. Found on first use with
+    /// `visible`, then kept: the grid belongs to one TF.
+    pub fn visible_surface_runs(
+        &self,
+        visible: impl Fn(UVec3) -> Option<[UVec3; 2]> + Sync,
+    ) -> (&[(UVec3, u32)], &[[u8; 6]]) {
+        let (runs, shrink) = self
+            .visible_surface
+            .get_or_init(|| self.narrow(self.surface_runs(), true, visible));
+        (runs, shrink)
+    }
+
+    /// [`SkipGrid::occupied_runs`] narrowed as
+    /// [`SkipGrid::visible_surface_runs`] narrows the surface ones, but to
+    /// their visible boxes alone: every occupied cell is drawn, so a ray's
+    /// first visible sample lies in one of their boxes wherever the ray
+    /// starts.
+    pub fn visible_occupied_runs(
+        &self,
+        visible: impl Fn(UVec3) -> Option<[UVec3; 2]> + Sync,
+    ) -> (&[(UVec3, u32)], &[[u8; 6]]) {
+        let (runs, shrink) = self
+            .visible_occupied
+            .get_or_init(|| self.narrow(self.occupied_runs(), false, visible));
+        (runs, shrink)
+    }
+
+    /// `runs` with their boxes narrowed to the bounding box of their cells'
+    /// `visible` boxes and, with `interior`, of the parts they share with
+    /// interior occupied cells (see [`SkipGrid::visible_surface_runs`]);
+    /// runs whose box is empty left out.
+    fn narrow(
+        &self,
+        runs: &[(UVec3, u32)],
+        interior_parts: bool,
+        visible: impl Fn(UVec3) -> Option<[UVec3; 2]> + Sync,
+    ) -> NarrowedRuns {
+        use rayon::prelude::*;
+        let surface = if interior_parts {
+            self.surface_words()
+        } else {
+            &[]
+        };
+        let n = self.count.as_ivec3();
+        let side = self.cell as u32;
+        let interior = |c: glam::IVec3| {
+            if c.cmplt(glam::IVec3::ZERO).any() || c.cmpge(n).any() {
+                return false;
+            }
+            let i = self.index(c.as_uvec3());
+            self.is_occupied_index(i) && surface[i >> 6] >> (i & 63) & 1 == 0
+        };
+        // A cell's box (voxels, relative to its lower corner).
+        let cell_box = |c: UVec3| -> Option<[UVec3; 2]> {
+            let base = c * side;
+            let mut b = visible(c).map(|[lo, hi]| [lo - base, hi - base]);
+            if !interior_parts {
+                return b;
+            }
+            let ci = c.as_ivec3();
+            for dx in -1..=1 {
+                for dy in -1..=1 {
+                    for dz in -1..=1 {
+                        let d = glam::IVec3::new(dx, dy, dz);
+                        if d == glam::IVec3::ZERO || !interior(ci + d) {
+                            continue;
+                        }
+                        let shared = |d: i32| match d {
+                            -1 => (0, 0),
+                            0 => (0, side),
+                            _ => (side, side),
+                        };
+                        let (x, y, z) = (shared(dx), shared(dy), shared(dz));
+                        let s = [UVec3::new(x.0, y.0, z.0), UVec3::new(x.1, y.1, z.1)];
+                        b = Some(match b {
+                            Some([lo, hi]) => [lo.min(s[0]), hi.max(s[1])],
+                            None => s,
+                        });
+                    }
+                }
+            }
+            b
+        };
+        let boxes: Vec<Option<[u8; 6]>> = runs
+            .par_iter()
+            .map(|&(c, len)| {
+                let mut b: Option<[UVec3; 2]> = None;
+                for k in 0..len {
+                    let Some([lo, hi]) = cell_box(c + UVec3::new(0, 0, k)) else {
+                        continue;
+                    };
+                    let lift = UVec3::new(0, 0, k * side);
+                    let (lo, hi) = (lo + lift, hi + lift);
+                    b = Some(match b {
+                        Some([a, z]) => [a.min(lo), z.max(hi)],
+                        None => [lo, hi],
+                    });
+                }
+                // Offsets beyond a byte narrow less than they could.
+                b.map(|[lo, hi]| {
+                    let down = UVec3::new(side, side, len * side) - hi;
+                    [lo.x, lo.y, lo.z, down.x, down.y, down.z].map(|v| v.min(255) as u8)
+                })
+            })
+            .collect();
+        let mut kept = Vec::new();
+        let mut shrink = Vec::new();
+        for (&run, b) in runs.iter().zip(boxes) {
+            if let Some(b) = b {
+                kept.push(run);
+                shrink.push(b);
+            }
+        }
+        (kept, shrink)
     }
 
     /// Word `w` of the occupancy bits with only the surface cells' set

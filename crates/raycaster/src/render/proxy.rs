@@ -41,7 +41,11 @@
 //! Macrocells are several pixels across, so a rectangle and a nearest point
 //! per box would start many rays early and walk many past the data's
 //! silhouette in vain: under perspective DVR draws each box pixel by pixel
-//! instead, where the pixel's own ray enters it ([`Coverage::Rays`]).
+//! instead, where the pixel's own ray enters it ([`Coverage::Rays`]). For
+//! an eye outside the macrocells it draws only those on the surface of the
+//! occupied region, each run's box narrowed to where its visible voxels lie
+//! ([`CellRuns::visible_surface`]), so a ray starts near its first visible
+//! sample rather than at the macrocell's face.
 //!
 //! [`LightProxy`] draws the same cells as seen along a directional light, so
 //! that shadow rays, which are parallel, learn where they have passed the
@@ -151,23 +155,25 @@ impl ProxyDepth {
                 boxes: 0,
             };
         }
-        let CellRuns { runs, side } = runs;
         // Pieces of the work (a few per thread, taken in turn: a thread
         // that starts late takes fewer).
         let parts = rayon::current_num_threads().max(1);
-        let pieces: Vec<&[(UVec3, u32)]> =
-            runs.chunks(runs.len().div_ceil(4 * parts).max(1)).collect();
+        let n = runs.runs.len();
+        let chunk = n.div_ceil(4 * parts).max(1);
+        let pieces: Vec<CellRuns<'_>> = (0..n)
+            .step_by(chunk)
+            .map(|a| runs.slice(a..(a + chunk).min(n)))
+            .collect();
         let boxes: Vec<Drawn> = on_threads(parts, pieces, |piece| match frame.projection() {
             Projection::Perspective => simd::dispatch(BoxRects {
                 frame,
                 rect,
                 grid,
-                runs: CellRuns { runs: piece, side },
+                runs: piece,
                 shift,
             }),
-            Projection::Orthographic => piece
-                .iter()
-                .filter_map(|run| box_of(frame, &rect, grid, run, side))
+            Projection::Orthographic => (0..piece.runs.len())
+                .filter_map(|k| box_of(frame, &rect, grid, piece.voxel_box(k)))
                 .collect::<Vec<_>>(),
         })
         .concat();
@@ -206,7 +212,7 @@ impl ProxyDepth {
             shift,
             width: w,
             depth,
-            boxes: runs.len(),
+            boxes: n,
         }
     }
 
@@ -295,6 +301,9 @@ pub struct CellRuns<'a> {
     pub runs: &'a [(UVec3, u32)],
     /// A cell's side, voxels.
     pub side: f32,
+    /// Empty, or per run how far (voxels) its box is narrowed: from its
+    /// lower corner up and from its upper corner down, per axis.
+    pub shrink: &'a [[u8; 6]],
 }
 
 impl<'a> CellRuns<'a> {
@@ -303,6 +312,7 @@ impl<'a> CellRuns<'a> {
         CellRuns {
             runs: cells.straddling_runs(),
             side: 1.0,
+            shrink: &[],
         }
     }
 
@@ -311,6 +321,7 @@ impl<'a> CellRuns<'a> {
         CellRuns {
             runs: skip.occupied_runs(),
             side: skip.cell_side(),
+            shrink: &[],
         }
     }
 
@@ -321,6 +332,64 @@ impl<'a> CellRuns<'a> {
         CellRuns {
             runs: skip.surface_runs(),
             side: skip.cell_side(),
+            shrink: &[],
+        }
+    }
+
+    /// [`CellRuns::surface`] narrowed to where a ray can first meet a
+    /// visible sample ([`SkipGrid::visible_surface_runs`]).
+    pub fn visible_surface(
+        skip: &'a SkipGrid,
+        visible: impl Fn(UVec3) -> Option<[UVec3; 2]> + Sync,
+    ) -> Self {
+        let (runs, shrink) = skip.visible_surface_runs(visible);
+        CellRuns {
+            runs,
+            side: skip.cell_side(),
+            shrink,
+        }
+    }
+
+    /// [`CellRuns::occupied`] narrowed to their visible voxels
+    /// ([`SkipGrid::visible_occupied_runs`]).
+    pub fn visible_occupied(
+        skip: &'a SkipGrid,
+        visible: impl Fn(UVec3) -> Option<[UVec3; 2]> + Sync,
+    ) -> Self {
+        let (runs, shrink) = skip.visible_occupied_runs(visible);
+        CellRuns {
+            runs,
+            side: skip.cell_side(),
+            shrink,
+        }
+    }
+
+    /// Runs `range` of these.
+    fn slice(&self, range: std::ops::Range<usize>) -> Self {
+        CellRuns {
+            runs: &self.runs[range.clone()],
+            side: self.side,
+            shrink: if self.shrink.is_empty() {
+                &[]
+            } else {
+                &self.shrink[range]
+            },
+        }
+    }
+
+    /// Run `k`'s box, voxels (not grown).
+    #[inline(always)]
+    fn voxel_box(&self, k: usize) -> (Vec3, Vec3) {
+        let (c, len) = self.runs[k];
+        let c = c.as_vec3();
+        let lo = c * self.side;
+        let hi = (c + Vec3::new(1.0, 1.0, len as f32)) * self.side;
+        match self.shrink.get(k) {
+            Some(s) => (
+                lo + Vec3::new(s[0] as f32, s[1] as f32, s[2] as f32),
+                hi - Vec3::new(s[3] as f32, s[4] as f32, s[5] as f32),
+            ),
+            None => (lo, hi),
         }
     }
 }
@@ -335,20 +404,18 @@ struct Drawn {
     hi: Vec3,
 }
 
-/// The box of a run of cells of side `side` along z (`(first cell,
-/// length)`), grown by [`MARGIN`], as `frame` sees it in `rect`, in blocks
-/// of [`BLOCK`] pixels; `None` when it does not show.
+/// The box of a run ([`CellRuns::voxel_box`]: `(lo, hi)`, voxels), grown
+/// by [`MARGIN`], as `frame` sees it in `rect`, in blocks of [`BLOCK`]
+/// pixels; `None` when it does not show.
 fn box_of(
     frame: &CameraFrame,
     rect: &PixelRect,
     grid: &Grid,
-    &(c, len): &(UVec3, u32),
-    side: f32,
+    (lo, hi): (Vec3, Vec3),
 ) -> Option<Drawn> {
-    let c = c.as_vec3();
     let grow = Vec3::splat(MARGIN);
-    let lo = grid.voxel_to_world(c * side - grow);
-    let hi = grid.voxel_to_world((c + Vec3::new(1.0, 1.0, len as f32)) * side + grow);
+    let lo = grid.voxel_to_world(lo - grow);
+    let hi = grid.voxel_to_world(hi + grow);
     let r = frame.box_rect(lo, hi)?.intersect(rect);
     if r.is_empty() {
         return None;
@@ -458,23 +525,23 @@ impl Kernel for BoxRects<'_> {
             frame,
             rect,
             grid,
-            runs: CellRuns { runs, side },
+            runs,
             shift,
         } = self;
         let (origin, spacing) = (grid.origin, grid.spacing);
         let eye = frame.position();
-        let mut out = Vec::with_capacity(runs.len());
-        for chunk in runs.chunks(N) {
+        let n = runs.runs.len();
+        let mut out = Vec::with_capacity(n);
+        for first in (0..n).step_by(N) {
+            let chunk_len = N.min(n - first);
             // Lanes past the chunk's end repeat its first run.
             let mut lo = [[0.0f32; N]; 3];
             let mut hi = [[0.0f32; N]; 3];
             for l in 0..N {
-                let (c, len) = chunk[if l < chunk.len() { l } else { 0 }];
-                let c = c.as_vec3();
-                let ext = [1.0, 1.0, len as f32];
+                let (vlo, vhi) = runs.voxel_box(first + if l < chunk_len { l } else { 0 });
                 for a in 0..3 {
-                    lo[a][l] = origin[a] + (c[a] * side - MARGIN) * spacing[a];
-                    hi[a][l] = origin[a] + ((c[a] + ext[a]) * side + MARGIN) * spacing[a];
+                    lo[a][l] = origin[a] + (vlo[a] - MARGIN) * spacing[a];
+                    hi[a][l] = origin[a] + (vhi[a] + MARGIN) * spacing[a];
                 }
             }
             let r = frame.box_rects(&lo, &hi);
@@ -490,7 +557,7 @@ impl Kernel for BoxRects<'_> {
                     .sqrt()
                     .max(0.0);
             }
-            for l in 0..chunk.len() {
+            for l in 0..chunk_len {
                 let r = PixelRect {
                     x0: r[0][l],
                     y0: r[1][l],
@@ -969,26 +1036,35 @@ mod tests {
                 .into_iter()
                 .flat_map(|n| [(n, 1.0), (n / 4, 4.0)])
             {
-                let some = &runs[..n];
-                let want: Vec<_> = some
-                    .iter()
-                    .filter_map(|run| box_of(&frame, &rect, &grid, run, side))
+                // With and without narrowed boxes.
+                let shrink: Vec<[u8; 6]> = (0..n)
+                    .map(|k| std::array::from_fn(|a| ((k * 7 + a * 3) % 3) as u8))
                     .collect();
-                let got = simd::dispatch(BoxRects {
-                    frame: &frame,
-                    rect,
-                    grid: &grid,
-                    runs: CellRuns { runs: some, side },
-                    shift: BLOCK_SHIFT,
-                });
-                assert_eq!(got.len(), want.len(), "{eye} {n} {side}");
-                for (g, w) in got.iter().zip(&want) {
-                    assert_eq!(g.blocks, w.blocks, "{eye} {n} {side}");
-                    assert_eq!(g.t.to_bits(), w.t.to_bits(), "{eye} {n} {side}");
-                    assert_eq!((g.lo, g.hi), (w.lo, w.hi), "{eye} {n} {side}");
-                }
-                if n == runs.len() {
-                    assert!(!want.is_empty(), "{eye}");
+                for shrink in [&[][..], &shrink[..]] {
+                    let some = CellRuns {
+                        runs: &runs[..n],
+                        side,
+                        shrink,
+                    };
+                    let want: Vec<_> = (0..n)
+                        .filter_map(|k| box_of(&frame, &rect, &grid, some.voxel_box(k)))
+                        .collect();
+                    let got = simd::dispatch(BoxRects {
+                        frame: &frame,
+                        rect,
+                        grid: &grid,
+                        runs: some,
+                        shift: BLOCK_SHIFT,
+                    });
+                    assert_eq!(got.len(), want.len(), "{eye} {n} {side}");
+                    for (g, w) in got.iter().zip(&want) {
+                        assert_eq!(g.blocks, w.blocks, "{eye} {n} {side}");
+                        assert_eq!(g.t.to_bits(), w.t.to_bits(), "{eye} {n} {side}");
+                        assert_eq!((g.lo, g.hi), (w.lo, w.hi), "{eye} {n} {side}");
+                    }
+                    if n == runs.len() {
+                        assert!(!want.is_empty(), "{eye}");
+                    }
                 }
             }
         }
