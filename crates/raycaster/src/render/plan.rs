@@ -349,8 +349,8 @@ impl FramePlan {
             // nearest of them along its ray lies in an empty one.
             if ProxyDepth::pays(skip.occupied_count(), &self.rect) {
                 let outside = self.eye_outside(grid, skip);
-                let runs = if VisibleSurface::pays(skip, outside) {
-                    scene.volume().visit(VisibleSurface {
+                let runs = if VisibleRuns::pays(skip, outside) {
+                    scene.volume().visit(VisibleRuns {
                         skip,
                         lut: &self.prepared.0,
                         outside,
@@ -469,22 +469,22 @@ impl FramePlan {
 /// visible sample and more of them are culled; for an eye not `outside`
 /// the macrocells, [`CellRuns::visible_occupied`]. Found once per TF, by
 /// reading every drawn cell's voxels.
-struct VisibleSurface<'a> {
+struct VisibleRuns<'a> {
     skip: &'a SkipGrid,
     lut: &'a TfLut,
     outside: bool,
 }
 
-/// The most interpolation cells [`VisibleSurface`] reads (about 8 M, some
+/// The most interpolation cells [`VisibleRuns`] reads (about 8 M, some
 /// tens of milliseconds on two cores): a larger surface (a huge volume)
 /// keeps its macrocell boxes, rather than reading (and mapping into
 /// memory) the voxels of every surface cell, most of which no ray that
 /// the first visible data stops would reach.
-const VISIBLE_SURFACE_CELLS: u64 = 1 << 23;
+const MAX_NARROWED_CELLS: u64 = 1 << 23;
 
-impl VisibleSurface<'_> {
+impl VisibleRuns<'_> {
     /// Whether narrowing the runs drawn for an eye `outside` the macrocells
-    /// (or not) reads at most [`VISIBLE_SURFACE_CELLS`].
+    /// (or not) reads at most [`MAX_NARROWED_CELLS`].
     fn pays(skip: &SkipGrid, outside: bool) -> bool {
         let runs = if outside {
             skip.surface_runs()
@@ -492,11 +492,11 @@ impl VisibleSurface<'_> {
             skip.occupied_runs()
         };
         let cells: u64 = runs.iter().map(|&(_, n)| n as u64).sum();
-        cells * (skip.cell_side() as u64).pow(3) <= VISIBLE_SURFACE_CELLS
+        cells * (skip.cell_side() as u64).pow(3) <= MAX_NARROWED_CELLS
     }
 }
 
-impl<'a> crate::volume::VolumeVisitor for VisibleSurface<'a> {
+impl<'a> crate::volume::VolumeVisitor for VisibleRuns<'a> {
     type Output = CellRuns<'a>;
 
     fn visit<V: Volume>(self, volume: &V) -> CellRuns<'a> {
@@ -561,7 +561,7 @@ mod tests {
 
     /// DVR's proxy from the surface macrocells (or, for an eye inside the
     /// grid, all occupied ones) narrowed to their visible voxels
-    /// ([`VisibleSurface`]): before each pixel's first kept sample lies no
+    /// ([`VisibleRuns`]): before each pixel's first kept sample lies no
     /// sample the TF makes visible (balls of two visible values, one
     /// inside the other, in invisible noise, and a lattice of visible
     /// blocks; cells of 4 voxels; eyes outside the grid on several sides
@@ -618,7 +618,7 @@ mod tests {
                 (world(Vec3::new(4.0, 3.0, 44.0)), false, true),
                 (world(a + Vec3::new(2.0, -3.0, 1.0)), false, false),
             ] {
-                let narrowed = volume.visit(VisibleSurface {
+                let narrowed = volume.visit(VisibleRuns {
                     skip: &skip,
                     lut: &lut,
                     outside,
