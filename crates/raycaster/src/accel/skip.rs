@@ -86,9 +86,9 @@ pub struct SkipGrid {
     /// Per 64 cells (as `occupied`), the surface cells' bits
     /// ([`SkipGrid::surface_runs`]), found on first use.
     surface: OnceLock<Vec<u64>>,
-    /// [`SkipGrid::visible_surface_runs`], found on first use.
+    /// [`SkipGrid::visible_runs`] of the surface runs and of the occupied
+    /// ones, each found on first use.
     visible_surface: OnceLock<NarrowedRuns>,
-    /// [`SkipGrid::visible_occupied_runs`], found on first use.
     visible_occupied: OnceLock<NarrowedRuns>,
     /// Per 64 cells (as `occupied`), two words of flags of the occupied
     /// ones: uniform, and flat under the TF ([`SkipGrid::with_steady`]);
@@ -321,49 +321,49 @@ impl SkipGrid {
         })
     }
 
-    /// [`SkipGrid::surface_runs`], each with its box narrowed to where a
-    /// ray from outside the grid can first meet a visible sample: per run,
-    /// the offsets (voxels, in each axis from the run's lower corner up and
-    /// from its upper corner down) of the bounding box of its cells'
-    /// `visible` boxes (the voxel box of the interpolation cells of a
-    /// macrocell the TF can make visible, or `None`) and of the faces,
-    /// edges and corners they share with interior occupied cells (which
-    /// rays reach only through a surface cell); runs whose box is empty
-    /// are left out. Why that is enough: a ray meets the occupied region
-    /// first in a surface cell; from there it reaches its first visible
-    /// sample in that cell (inside the cell's visible box), or through a
-    /// part it shares with an interior cell (inside the box), or through
-    /// another surface cell, to which the same applies, or through empty
-    /// cells into another surface cell. Found on first use with
-    /// `visible`, then kept: the grid belongs to one TF.
-    pub fn visible_surface_runs(
+    /// [`SkipGrid::surface_runs`] (with `surface`) or
+    /// [`SkipGrid::occupied_runs`], each with its box narrowed to where a
+    /// ray can first meet a visible sample: per run, the offsets (voxels,
+    /// in each axis from the run's lower corner up and from its upper
+    /// corner down) of the bounding box of its cells' `visible` boxes (the
+    /// voxel box of the interpolation cells of a macrocell the TF can make
+    /// visible, or `None`) and, for the surface runs, of the faces, edges
+    /// and corners they share with interior occupied cells (which rays
+    /// reach only through a surface cell); runs whose box is empty are
+    /// left out. Why that is enough: every occupied cell drawn, a ray's
+    /// first visible sample lies in one of their visible boxes wherever
+    /// the ray starts. With only the surface ones, for rays from outside
+    /// the grid: a ray meets the occupied region first in a surface cell;
+    /// from there it reaches its first visible sample in that cell (inside
+    /// the cell's visible box), or through a part it shares with an
+    /// interior cell (inside the box), or through another surface cell, to
+    /// which the same applies, or through empty cells into another surface
+    /// cell. Found on first use with `visible`, then kept: the grid belongs
+    /// to one TF.
+    pub fn visible_runs(
         &self,
+        surface: bool,
         visible: impl Fn(UVec3) -> Option<[UVec3; 2]> + Sync,
     ) -> (&[(UVec3, u32)], &[[u8; 6]]) {
-        let (runs, shrink) = self
-            .visible_surface
-            .get_or_init(|| self.narrow(self.surface_runs(), true, visible));
-        (runs, shrink)
-    }
-
-    /// [`SkipGrid::occupied_runs`] narrowed as
-    /// [`SkipGrid::visible_surface_runs`] narrows the surface ones, but to
-    /// their visible boxes alone: every occupied cell is drawn, so a ray's
-    /// first visible sample lies in one of their boxes wherever the ray
-    /// starts.
-    pub fn visible_occupied_runs(
-        &self,
-        visible: impl Fn(UVec3) -> Option<[UVec3; 2]> + Sync,
-    ) -> (&[(UVec3, u32)], &[[u8; 6]]) {
-        let (runs, shrink) = self
-            .visible_occupied
-            .get_or_init(|| self.narrow(self.occupied_runs(), false, visible));
+        let (runs, shrink) = if surface {
+            &self.visible_surface
+        } else {
+            &self.visible_occupied
+        }
+        .get_or_init(|| {
+            let runs = if surface {
+                self.surface_runs()
+            } else {
+                self.occupied_runs()
+            };
+            self.narrow(runs, surface, visible)
+        });
         (runs, shrink)
     }
 
     /// `runs` with their boxes narrowed to the bounding box of their cells'
     /// `visible` boxes and, with `interior`, of the parts they share with
-    /// interior occupied cells (see [`SkipGrid::visible_surface_runs`]);
+    /// interior occupied cells (see [`SkipGrid::visible_runs`]);
     /// runs whose box is empty left out.
     fn narrow(
         &self,

@@ -462,12 +462,12 @@ impl FramePlan {
     }
 }
 
-/// [`CellRuns::visible_surface`] of `skip` for the volume visited, whose
+/// [`CellRuns::visible`] of `skip` for the volume visited, whose
 /// visible interpolation cells `lut` says: the proxy's boxes narrowed from
 /// the surface macrocells to where their visible voxels (and the parts
 /// they share with interior cells) lie, so rays start nearer their first
 /// visible sample and more of them are culled; for an eye not `outside`
-/// the macrocells, [`CellRuns::visible_occupied`]. Found once per TF, by
+/// the macrocells, all occupied ones narrowed. Found once per TF, by
 /// reading every drawn cell's voxels.
 struct VisibleRuns<'a> {
     skip: &'a SkipGrid,
@@ -535,11 +535,7 @@ impl<'a> crate::volume::VolumeVisitor for VisibleRuns<'a> {
             }
             first.cmplt(last).all().then_some([first, last])
         };
-        if self.outside {
-            CellRuns::visible_surface(skip, visible)
-        } else {
-            CellRuns::visible_occupied(skip, visible)
-        }
+        CellRuns::visible(skip, self.outside, visible)
     }
 }
 

@@ -44,7 +44,7 @@
 //! instead, where the pixel's own ray enters it ([`Coverage::Rays`]). For
 //! an eye outside the macrocells it draws only those on the surface of the
 //! occupied region, each run's box narrowed to where its visible voxels lie
-//! ([`CellRuns::visible_surface`]), so a ray starts near its first visible
+//! ([`CellRuns::visible`]), so a ray starts near its first visible
 //! sample rather than at the macrocell's face.
 //!
 //! [`LightProxy`] draws the same cells as seen along a directional light, so
@@ -336,27 +336,15 @@ impl<'a> CellRuns<'a> {
         }
     }
 
-    /// [`CellRuns::surface`] narrowed to where a ray can first meet a
-    /// visible sample ([`SkipGrid::visible_surface_runs`]).
-    pub fn visible_surface(
+    /// [`CellRuns::surface`] (with `surface`) or [`CellRuns::occupied`]
+    /// narrowed to where a ray can first meet a visible sample
+    /// ([`SkipGrid::visible_runs`]).
+    pub fn visible(
         skip: &'a SkipGrid,
+        surface: bool,
         visible: impl Fn(UVec3) -> Option<[UVec3; 2]> + Sync,
     ) -> Self {
-        let (runs, shrink) = skip.visible_surface_runs(visible);
-        CellRuns {
-            runs,
-            side: skip.cell_side(),
-            shrink,
-        }
-    }
-
-    /// [`CellRuns::occupied`] narrowed to their visible voxels
-    /// ([`SkipGrid::visible_occupied_runs`]).
-    pub fn visible_occupied(
-        skip: &'a SkipGrid,
-        visible: impl Fn(UVec3) -> Option<[UVec3; 2]> + Sync,
-    ) -> Self {
-        let (runs, shrink) = skip.visible_occupied_runs(visible);
+        let (runs, shrink) = skip.visible_runs(surface, visible);
         CellRuns {
             runs,
             side: skip.cell_side(),
