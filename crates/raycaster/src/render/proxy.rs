@@ -426,6 +426,54 @@ fn box_of(
 fn fill_rays(
     frame: &CameraFrame,
     rect: &PixelRect,
+    rows: (u32, u32),
+    boxes: &[Drawn],
+    band: &[u32],
+    out: &mut [f32],
+) {
+    simd::dispatch(FillRays {
+        frame,
+        rect,
+        rows,
+        boxes,
+        band,
+        out,
+    })
+}
+
+/// [`fill_rays`] as a [`Kernel`], so that its lane-wise loops are 8 wide
+/// where the CPU has AVX2.
+struct FillRays<'a> {
+    frame: &'a CameraFrame,
+    rect: &'a PixelRect,
+    rows: (u32, u32),
+    boxes: &'a [Drawn],
+    band: &'a [u32],
+    out: &'a mut [f32],
+}
+
+impl Kernel for FillRays<'_> {
+    type Output = ();
+
+    #[inline(always)]
+    fn run<I: Isa>(self, _isa: I) {
+        let FillRays {
+            frame,
+            rect,
+            rows: (y0, y1),
+            boxes,
+            band,
+            out,
+        } = self;
+        fill_rays_lanes(frame, rect, (y0, y1), boxes, band, out);
+    }
+}
+
+/// [`fill_rays`]' body, inlined into each instruction set's copy.
+#[inline(always)]
+fn fill_rays_lanes(
+    frame: &CameraFrame,
+    rect: &PixelRect,
     (y0, y1): (u32, u32),
     boxes: &[Drawn],
     band: &[u32],
@@ -433,54 +481,80 @@ fn fill_rays(
 ) {
     use crate::simd::LANES;
     let w = (rect.x1 - rect.x0) as usize;
-    let n = (y1 - y0) as usize * w;
+    let rows = (y1 - y0) as usize;
+    // The band in rows of `stride` values: a box's span of a row is
+    // tested a whole vector at a time from its first pixel, the lanes past
+    // its end masked, so a span of a few pixels (most of them) costs a
+    // vector step or two and no scalar remainder loop; the padding keeps
+    // every step inside the row.
+    let stride = w.next_multiple_of(LANES) + LANES;
     // The band's rays' inverse directions, per axis. An axis a ray does not
     // move along gets ±f32::MAX instead of ±∞, so that a box face through
     // the eye gives 0 rather than NaN (0·∞), and the slab stays right: all
     // of the ray's parameters when the eye is between the planes, none
     // otherwise (with the eye on a plane, either: a box is grown by
-    // `MARGIN`, so such a ray passes that far outside its cells).
-    let mut inv = [vec![0.0f32; n], vec![0.0f32; n], vec![0.0f32; n]];
-    for row in 0..(y1 - y0) as usize {
+    // `MARGIN`, so such a ray passes that far outside its cells). Lanes
+    // past the row's end repeat its last pixel (their results are masked).
+    let mut inv = [(); 3].map(|_| vec![0.0f32; rows * stride]);
+    for row in 0..rows {
         let j = [rect.y0 + y0 + row as u32; LANES];
-        for x in (0..w).step_by(LANES) {
-            // Lanes past the row's end repeat its last pixel.
+        for x in (0..stride).step_by(LANES) {
             let i: [u32; LANES] = std::array::from_fn(|l| rect.x0 + (x + l).min(w - 1) as u32);
             let d = frame.perspective_dirs(&i, &j);
-            let at = row * w + x;
+            let at = row * stride + x;
             for (a, inv) in inv.iter_mut().enumerate() {
-                for l in 0..LANES.min(w - x) {
+                for l in 0..LANES {
                     inv[at + l] = d[a][l].recip().clamp(-f32::MAX, f32::MAX);
                 }
             }
         }
     }
+    let mut depth = vec![f32::INFINITY; rows * stride];
     let eye = frame.position();
+    let lane: [u32; LANES] = std::array::from_fn(|l| l as u32);
     for &k in band {
         let b = boxes[k as usize];
         let (lo, hi) = ((b.lo - eye).to_array(), (b.hi - eye).to_array());
         let r = b.blocks;
         for j in r.y0.max(y0)..r.y1.min(y1) {
-            let at = (j - y0) as usize * w;
-            let span = at + r.x0 as usize..at + r.x1 as usize;
-            let (ix, iy, iz) = (
-                &inv[0][span.clone()],
-                &inv[1][span.clone()],
-                &inv[2][span.clone()],
-            );
-            let lanes = out[span].iter_mut().zip(ix).zip(iy).zip(iz);
-            // The slab test, from the box's lower bound, without a branch
-            // (the compiler vectorises it): NaN-free (see above).
-            for (((d, &ix), &iy), &iz) in lanes {
-                let mut t = (b.t, f32::INFINITY);
+            let at = (j - y0) as usize * stride;
+            let mut x = r.x0 as usize;
+            while x < r.x1 as usize {
+                // Lanes `0..n` are the span's pixels `x..x + n`.
+                let n = (r.x1 as usize - x).min(LANES) as u32;
+                let chunk = at + x..at + x + LANES;
+                let (Some(ix), Some(iy), Some(iz)) = (
+                    inv[0][chunk.clone()].first_chunk::<LANES>(),
+                    inv[1][chunk.clone()].first_chunk::<LANES>(),
+                    inv[2][chunk.clone()].first_chunk::<LANES>(),
+                ) else {
+                    unreachable!("the padded row holds a vector past every pixel");
+                };
+                let Some(d) = depth[chunk].first_chunk_mut::<LANES>() else {
+                    unreachable!("the padded row holds a vector past every pixel");
+                };
+                // The slab test, from the box's lower bound, lane-wise
+                // without a branch (vectorised): NaN-free (see above).
+                let (mut t0, mut t1) = ([b.t; LANES], [f32::INFINITY; LANES]);
                 for (a, inv) in [ix, iy, iz].into_iter().enumerate() {
-                    t = clip_slab(lo[a], hi[a], inv, t);
+                    for l in 0..LANES {
+                        (t0[l], t1[l]) = clip_slab(lo[a], hi[a], inv[l], (t0[l], t1[l]));
+                    }
                 }
-                let (t0, t1) = t;
-                let t = if t0 <= t1 { t0 } else { f32::INFINITY };
-                *d = if t < *d { t } else { *d };
+                for l in 0..LANES {
+                    let t = if t0[l] <= t1[l] && lane[l] < n {
+                        t0[l]
+                    } else {
+                        f32::INFINITY
+                    };
+                    d[l] = if t < d[l] { t } else { d[l] };
+                }
+                x += LANES;
             }
         }
+    }
+    for (row, out) in out.chunks_mut(w).enumerate().take(rows) {
+        out.copy_from_slice(&depth[row * stride..row * stride + w]);
     }
 }
 
