@@ -511,7 +511,6 @@ fn fill_rays_lanes(
     }
     let mut depth = vec![f32::INFINITY; rows * stride];
     let eye = frame.position();
-    let lane: [u32; LANES] = std::array::from_fn(|l| l as u32);
     for &k in band {
         let b = boxes[k as usize];
         let (lo, hi) = ((b.lo - eye).to_array(), (b.hi - eye).to_array());
@@ -534,20 +533,23 @@ fn fill_rays_lanes(
                     unreachable!("the padded row holds a vector past every pixel");
                 };
                 // The slab test, from the box's lower bound, lane-wise
-                // without a branch (vectorised): NaN-free (see above).
-                let (mut t0, mut t1) = ([b.t; LANES], [f32::INFINITY; LANES]);
+                // without a branch (vectorised): NaN-free (see above). A
+                // lane past the span starts with an empty interval.
+                let mut t0 = [b.t; LANES];
+                let mut t1: [f32; LANES] = std::array::from_fn(|l| {
+                    if (l as u32) < n { f32::INFINITY } else { f32::NEG_INFINITY }
+                });
                 for (a, inv) in [ix, iy, iz].into_iter().enumerate() {
                     for l in 0..LANES {
                         (t0[l], t1[l]) = clip_slab(lo[a], hi[a], inv[l], (t0[l], t1[l]));
                     }
                 }
+                // `f32::min` (neither is NaN): the compiler makes `if t <
+                // d { d = t }` a masked store of the lanes that change,
+                // which is slow.
                 for l in 0..LANES {
-                    let t = if t0[l] <= t1[l] && lane[l] < n {
-                        t0[l]
-                    } else {
-                        f32::INFINITY
-                    };
-                    d[l] = if t < d[l] { t } else { d[l] };
+                    let t = if t0[l] <= t1[l] { t0[l] } else { f32::INFINITY };
+                    d[l] = d[l].min(t);
                 }
                 x += LANES;
             }
