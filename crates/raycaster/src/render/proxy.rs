@@ -537,7 +537,11 @@ fn fill_rays_lanes(
                 // lane past the span starts with an empty interval.
                 let mut t0 = [b.t; LANES];
                 let mut t1: [f32; LANES] = std::array::from_fn(|l| {
-                    if (l as u32) < n { f32::INFINITY } else { f32::NEG_INFINITY }
+                    if (l as u32) < n {
+                        f32::INFINITY
+                    } else {
+                        f32::NEG_INFINITY
+                    }
                 });
                 for (a, inv) in [ix, iy, iz].into_iter().enumerate() {
                     for l in 0..LANES {
