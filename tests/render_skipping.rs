@@ -189,7 +189,9 @@ fn ert_and_ess_change_images_only_within_the_spec() {
 /// Solid objects seen from outside: the rays' proxy depths come from the
 /// occupied macrocells on the objects' surfaces only (those inside cannot
 /// be met first), and the images are still those without skipping, from
-/// every side, with a weak and an opaque TF.
+/// every side, with a weak and an opaque TF: on a TF's first frame (the
+/// plain surface runs) and on its second (the runs narrowed to their
+/// visible voxels, which must save samples).
 #[test]
 fn proxy_of_surface_cells_changes_nothing() {
     let dims = [70u32, 64, 58];
@@ -222,6 +224,7 @@ fn proxy_of_surface_cells_changes_nothing() {
             (255.0, [1.0; 3], 0.05),
         ],
     );
+    let mut narrowed = 0;
     for eye in [
         Vec3::new(0.0, 0.0, 150.0),
         Vec3::new(0.0, 0.0, -150.0),
@@ -236,18 +239,28 @@ fn proxy_of_surface_cells_changes_nothing() {
                 ..opts(RenderMode::Dvr, 0.4)
             };
             let plain = render(scene, &cam, tf, &base);
-            let ess = render(
-                scene,
-                &cam,
-                tf,
-                &RenderOptions {
-                    ess: true,
-                    ..base.clone()
-                },
+            let with_ess = RenderOptions {
+                ess: true,
+                ..base.clone()
+            };
+            // A TF's first frame draws the plain surface runs, the next
+            // ones the runs narrowed to the visible voxels: the same image.
+            let mut renderer = SerialRenderer::new();
+            let mut frames = (0..2).map(|_| renderer.render(scene, &cam, tf, &with_ess).unwrap());
+            let (first, second) = (frames.next().unwrap(), frames.next().unwrap());
+            assert_eq!(plain.rgb, first.rgb, "eye {eye}: ESS changed the image");
+            assert_eq!(
+                plain.rgb, second.rgb,
+                "eye {eye}: the narrowed proxy changed it"
             );
-            assert_eq!(plain.rgb, ess.rgb, "eye {eye}: ESS changed the image");
+            assert!(second.stats.samples <= first.stats.samples, "eye {eye}");
+            narrowed += (second.stats.samples < first.stats.samples) as u32;
         }
     }
+    assert!(
+        narrowed >= 5,
+        "the narrowed proxy saved samples in {narrowed} frames"
+    );
 }
 
 /// ESS takes fewer samples on a mostly empty volume, and a small object in a

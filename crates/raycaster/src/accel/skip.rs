@@ -90,6 +90,9 @@ pub struct SkipGrid {
     /// ones, each found on first use.
     visible_surface: OnceLock<NarrowedRuns>,
     visible_occupied: OnceLock<NarrowedRuns>,
+    /// Set by the first DVR frame that draws this grid's proxy runs
+    /// ([`SkipGrid::proxy_drawn_before`]).
+    proxy_drawn: OnceLock<()>,
     /// Per 64 cells (as `occupied`), two words of flags of the occupied
     /// ones: uniform, and flat under the TF ([`SkipGrid::with_steady`]);
     /// empty when not built. A DVR ray asks for both at every occupied
@@ -191,6 +194,7 @@ impl SkipGrid {
             surface: OnceLock::new(),
             visible_surface: OnceLock::new(),
             visible_occupied: OnceLock::new(),
+            proxy_drawn: OnceLock::new(),
             steady: Vec::new(),
         }
     }
@@ -359,6 +363,15 @@ impl SkipGrid {
             self.narrow(runs, surface, visible)
         });
         (runs, shrink)
+    }
+
+    /// Notes a DVR frame that draws this grid's proxy runs; true when one
+    /// did before. The narrowed runs ([`SkipGrid::visible_runs`]) cost a
+    /// pass over the surface cells' corners, which a frame with a new TF
+    /// (one of many while a TF is dragged in the viewer, or the only frame
+    /// of a render) would not win back: such a frame draws the plain runs.
+    pub(crate) fn proxy_drawn_before(&self) -> bool {
+        self.proxy_drawn.set(()).is_err()
     }
 
     /// `runs` with their boxes narrowed to the bounding box of their cells'

@@ -349,7 +349,8 @@ impl FramePlan {
             // nearest of them along its ray lies in an empty one.
             if ProxyDepth::pays(skip.occupied_count(), &self.rect) {
                 let outside = self.eye_outside(grid, skip);
-                let runs = if VisibleRuns::pays(skip, outside) {
+                // Narrowed from the TF's second frame on.
+                let runs = if skip.proxy_drawn_before() && VisibleRuns::pays(skip, outside) {
                     scene.volume().visit(VisibleRuns {
                         skip,
                         lut: &self.prepared.0,
