@@ -107,6 +107,14 @@ pub struct SkipGrid {
 /// corner down, per axis).
 type NarrowedRuns = (Vec<(UVec3, u32)>, Vec<[u8; 6]>);
 
+/// The bounding box of `b` (if any) and `[lo, hi]`.
+fn union(b: Option<[UVec3; 2]>, [lo, hi]: [UVec3; 2]) -> [UVec3; 2] {
+    match b {
+        Some([a, z]) => [a.min(lo), z.max(hi)],
+        None => [lo, hi],
+    }
+}
+
 /// The most cells in one of [`SkipGrid::occupied_runs`]: a run is one box
 /// to the proxy depths, which bound every ray meeting it by the box's
 /// nearest point, so a long box starts the rays that meet its far end
@@ -314,6 +322,17 @@ impl SkipGrid {
         })
     }
 
+    /// The runs a DVR frame's proxy draws: [`SkipGrid::surface_runs`] for
+    /// an eye outside the grid (`surface`), else
+    /// [`SkipGrid::occupied_runs`].
+    pub fn proxy_runs(&self, surface: bool) -> &[(UVec3, u32)] {
+        if surface {
+            self.surface_runs()
+        } else {
+            self.occupied_runs()
+        }
+    }
+
     /// The surface cells' bits, per 64 cells as `occupied`.
     fn surface_words(&self) -> &[u64] {
         self.surface.get_or_init(|| {
@@ -325,8 +344,7 @@ impl SkipGrid {
         })
     }
 
-    /// [`SkipGrid::surface_runs`] (with `surface`) or
-    /// [`SkipGrid::occupied_runs`], each with its box narrowed to where a
+    /// [`SkipGrid::proxy_runs`], each with its box narrowed to where a
     /// ray can first meet a visible sample: per run, the offsets (voxels,
     /// in each axis from the run's lower corner up and from its upper
     /// corner down) of the bounding box of its cells' `visible` boxes (the
@@ -354,14 +372,7 @@ impl SkipGrid {
         } else {
             &self.visible_occupied
         }
-        .get_or_init(|| {
-            let runs = if surface {
-                self.surface_runs()
-            } else {
-                self.occupied_runs()
-            };
-            self.narrow(runs, surface, visible)
-        });
+        .get_or_init(|| self.narrow(self.proxy_runs(surface), surface, visible));
         (runs, shrink)
     }
 
@@ -421,10 +432,7 @@ impl SkipGrid {
                         };
                         let (x, y, z) = (shared(dx), shared(dy), shared(dz));
                         let s = [UVec3::new(x.0, y.0, z.0), UVec3::new(x.1, y.1, z.1)];
-                        b = Some(match b {
-                            Some([lo, hi]) => [lo.min(s[0]), hi.max(s[1])],
-                            None => s,
-                        });
+                        b = Some(union(b, s));
                     }
                 }
             }
@@ -439,11 +447,7 @@ impl SkipGrid {
                         continue;
                     };
                     let lift = UVec3::new(0, 0, k * side);
-                    let (lo, hi) = (lo + lift, hi + lift);
-                    b = Some(match b {
-                        Some([a, z]) => [a.min(lo), z.max(hi)],
-                        None => [lo, hi],
-                    });
+                    b = Some(union(b, [lo + lift, hi + lift]));
                 }
                 // Offsets beyond a byte narrow less than they could.
                 b.map(|[lo, hi]| {

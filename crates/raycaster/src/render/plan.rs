@@ -356,10 +356,8 @@ impl FramePlan {
                         lut: &self.prepared.0,
                         outside,
                     })
-                } else if outside {
-                    CellRuns::surface(skip)
                 } else {
-                    CellRuns::occupied(skip)
+                    CellRuns::plain(skip, outside)
                 };
                 self.proxy = Some(ProxyDepth::build(
                     &self.camera,
@@ -487,11 +485,7 @@ impl VisibleRuns<'_> {
     /// Whether narrowing the runs drawn for an eye `outside` the macrocells
     /// (or not) reads at most [`MAX_NARROWED_CELLS`].
     fn pays(skip: &SkipGrid, outside: bool) -> bool {
-        let runs = if outside {
-            skip.surface_runs()
-        } else {
-            skip.occupied_runs()
-        };
+        let runs = skip.proxy_runs(outside);
         let cells: u64 = runs.iter().map(|&(_, n)| n as u64).sum();
         cells * (skip.cell_side() as u64).pow(3) <= MAX_NARROWED_CELLS
     }
@@ -621,11 +615,7 @@ mod tests {
                     outside,
                 });
                 assert!(!narrowed.shrink.is_empty());
-                let surface = if outside {
-                    CellRuns::surface(&skip)
-                } else {
-                    CellRuns::occupied(&skip)
-                };
+                let surface = CellRuns::plain(&skip, outside);
                 let mut cam = Camera::look_at(eye, world(a), 48, 40);
                 cam.fov_y_deg = 50.0;
                 let frame = cam.frame().unwrap();

@@ -32,7 +32,7 @@
 //! the bands left one thread with twice the other's fill.
 //!
 //! DVR draws the same way the macrocells its TF makes visible
-//! ([`CellRuns::occupied`]): a sample before the nearest of them along its
+//! ([`CellRuns::plain`]): a sample before the nearest of them along its
 //! ray lies in an empty macrocell and adds nothing, so a ray's first kept
 //! sample moves to its pixel's depth (the samples stay where they are), and
 //! a ray that meets none keeps no sample. The object renderer already
@@ -316,28 +316,19 @@ impl<'a> CellRuns<'a> {
         }
     }
 
-    /// The macrocells a transfer function makes visible (DVR).
-    pub fn occupied(skip: &'a SkipGrid) -> Self {
+    /// The macrocells a transfer function makes visible (DVR): with
+    /// `surface`, only those on the surface of the occupied region, which
+    /// give rays from outside the grid the same nearest occupied cell
+    /// ([`SkipGrid::proxy_runs`]).
+    pub fn plain(skip: &'a SkipGrid, surface: bool) -> Self {
         CellRuns {
-            runs: skip.occupied_runs(),
+            runs: skip.proxy_runs(surface),
             side: skip.cell_side(),
             shrink: &[],
         }
     }
 
-    /// Those of them on the surface of the occupied region: for rays from
-    /// outside the grid, the same nearest occupied cell
-    /// ([`SkipGrid::surface_runs`]).
-    pub fn surface(skip: &'a SkipGrid) -> Self {
-        CellRuns {
-            runs: skip.surface_runs(),
-            side: skip.cell_side(),
-            shrink: &[],
-        }
-    }
-
-    /// [`CellRuns::surface`] (with `surface`) or [`CellRuns::occupied`]
-    /// narrowed to where a ray can first meet a visible sample
+    /// [`CellRuns::plain`] narrowed to where a ray can first meet a visible sample
     /// ([`SkipGrid::visible_runs`]).
     pub fn visible(
         skip: &'a SkipGrid,
@@ -465,102 +456,85 @@ impl Kernel for FillRays<'_> {
             band,
             out,
         } = self;
-        fill_rays_lanes(frame, rect, (y0, y1), boxes, band, out);
-    }
-}
-
-/// [`fill_rays`]' body, inlined into each instruction set's copy.
-#[inline(always)]
-fn fill_rays_lanes(
-    frame: &CameraFrame,
-    rect: &PixelRect,
-    (y0, y1): (u32, u32),
-    boxes: &[Drawn],
-    band: &[u32],
-    out: &mut [f32],
-) {
-    use crate::simd::LANES;
-    let w = (rect.x1 - rect.x0) as usize;
-    let rows = (y1 - y0) as usize;
-    // The band in rows of `stride` values: a box's span of a row is
-    // tested a whole vector at a time from its first pixel, the lanes past
-    // its end masked, so a span of a few pixels (most of them) costs a
-    // vector step or two and no scalar remainder loop; the padding keeps
-    // every step inside the row.
-    let stride = w.next_multiple_of(LANES) + LANES;
-    // The band's rays' inverse directions, per axis. An axis a ray does not
-    // move along gets ±f32::MAX instead of ±∞, so that a box face through
-    // the eye gives 0 rather than NaN (0·∞), and the slab stays right: all
-    // of the ray's parameters when the eye is between the planes, none
-    // otherwise (with the eye on a plane, either: a box is grown by
-    // `MARGIN`, so such a ray passes that far outside its cells). Lanes
-    // past the row's end repeat its last pixel (their results are masked).
-    let mut inv = [(); 3].map(|_| vec![0.0f32; rows * stride]);
-    for row in 0..rows {
-        let j = [rect.y0 + y0 + row as u32; LANES];
-        for x in (0..stride).step_by(LANES) {
-            let i: [u32; LANES] = std::array::from_fn(|l| rect.x0 + (x + l).min(w - 1) as u32);
-            let d = frame.perspective_dirs(&i, &j);
-            let at = row * stride + x;
-            for (a, inv) in inv.iter_mut().enumerate() {
-                for l in 0..LANES {
-                    inv[at + l] = d[a][l].recip().clamp(-f32::MAX, f32::MAX);
-                }
-            }
-        }
-    }
-    let mut depth = vec![f32::INFINITY; rows * stride];
-    let eye = frame.position();
-    for &k in band {
-        let b = boxes[k as usize];
-        let (lo, hi) = ((b.lo - eye).to_array(), (b.hi - eye).to_array());
-        let r = b.blocks;
-        for j in r.y0.max(y0)..r.y1.min(y1) {
-            let at = (j - y0) as usize * stride;
-            let mut x = r.x0 as usize;
-            while x < r.x1 as usize {
-                // Lanes `0..n` are the span's pixels `x..x + n`.
-                let n = (r.x1 as usize - x).min(LANES) as u32;
-                let chunk = at + x..at + x + LANES;
-                let (Some(ix), Some(iy), Some(iz)) = (
-                    inv[0][chunk.clone()].first_chunk::<LANES>(),
-                    inv[1][chunk.clone()].first_chunk::<LANES>(),
-                    inv[2][chunk.clone()].first_chunk::<LANES>(),
-                ) else {
-                    unreachable!("the padded row holds a vector past every pixel");
-                };
-                let Some(d) = depth[chunk].first_chunk_mut::<LANES>() else {
-                    unreachable!("the padded row holds a vector past every pixel");
-                };
-                // The slab test, from the box's lower bound, lane-wise
-                // without a branch (vectorised): NaN-free (see above). A
-                // lane past the span starts with an empty interval.
-                let mut t0 = [b.t; LANES];
-                let mut t1: [f32; LANES] = std::array::from_fn(|l| {
-                    if (l as u32) < n {
-                        f32::INFINITY
-                    } else {
-                        f32::NEG_INFINITY
-                    }
-                });
-                for (a, inv) in [ix, iy, iz].into_iter().enumerate() {
+        use crate::simd::LANES;
+        let w = (rect.x1 - rect.x0) as usize;
+        let rows = (y1 - y0) as usize;
+        // The band in rows of `stride` values: a box's span of a row is
+        // tested a whole vector at a time from its first pixel, the lanes past
+        // its end masked, so a span of a few pixels (most of them) costs a
+        // vector step or two and no scalar remainder loop; the padding keeps
+        // every step inside the row.
+        let stride = w.next_multiple_of(LANES) + LANES;
+        // The band's rays' inverse directions, per axis. An axis a ray does not
+        // move along gets ±f32::MAX instead of ±∞, so that a box face through
+        // the eye gives 0 rather than NaN (0·∞), and the slab stays right: all
+        // of the ray's parameters when the eye is between the planes, none
+        // otherwise (with the eye on a plane, either: a box is grown by
+        // `MARGIN`, so such a ray passes that far outside its cells). Lanes
+        // past the row's end repeat its last pixel (their results are masked).
+        let mut inv = [(); 3].map(|_| vec![0.0f32; rows * stride]);
+        for row in 0..rows {
+            let j = [rect.y0 + y0 + row as u32; LANES];
+            for x in (0..stride).step_by(LANES) {
+                let i: [u32; LANES] = std::array::from_fn(|l| rect.x0 + (x + l).min(w - 1) as u32);
+                let d = frame.perspective_dirs(&i, &j);
+                let at = row * stride + x;
+                for (a, inv) in inv.iter_mut().enumerate() {
                     for l in 0..LANES {
-                        (t0[l], t1[l]) = clip_slab(lo[a], hi[a], inv[l], (t0[l], t1[l]));
+                        inv[at + l] = d[a][l].recip().clamp(-f32::MAX, f32::MAX);
                     }
                 }
-                // `f32::min` (neither is NaN): the compiler makes `if t <
-                // d { d = t }` a masked store of the lanes that change,
-                // which is slow.
-                for l in 0..LANES {
-                    let t = if t0[l] <= t1[l] { t0[l] } else { f32::INFINITY };
-                    d[l] = d[l].min(t);
-                }
-                x += LANES;
             }
         }
-    }
-    for (row, out) in out.chunks_mut(w).enumerate().take(rows) {
-        out.copy_from_slice(&depth[row * stride..row * stride + w]);
+        let mut depth = vec![f32::INFINITY; rows * stride];
+        let eye = frame.position();
+        for &k in band {
+            let b = boxes[k as usize];
+            let (lo, hi) = ((b.lo - eye).to_array(), (b.hi - eye).to_array());
+            let r = b.blocks;
+            for j in r.y0.max(y0)..r.y1.min(y1) {
+                let at = (j - y0) as usize * stride;
+                let mut x = r.x0 as usize;
+                while x < r.x1 as usize {
+                    // Lanes `0..n` are the span's pixels `x..x + n`.
+                    let n = (r.x1 as usize - x).min(LANES) as u32;
+                    // (The padded row holds a whole vector from any pixel.)
+                    let chunk = at + x..at + x + LANES;
+                    let lanes = |v: &[f32]| -> [f32; LANES] {
+                        v[chunk.clone()].try_into().expect("LANES values")
+                    };
+                    let (ix, iy, iz) = (lanes(&inv[0]), lanes(&inv[1]), lanes(&inv[2]));
+                    let d = &mut depth[chunk];
+                    // The slab test, from the box's lower bound, lane-wise
+                    // without a branch (vectorised): NaN-free (see above). A
+                    // lane past the span starts with an empty interval.
+                    let mut t0 = [b.t; LANES];
+                    let mut t1: [f32; LANES] = std::array::from_fn(|l| {
+                        if (l as u32) < n {
+                            f32::INFINITY
+                        } else {
+                            f32::NEG_INFINITY
+                        }
+                    });
+                    for (a, inv) in [ix, iy, iz].into_iter().enumerate() {
+                        for l in 0..LANES {
+                            (t0[l], t1[l]) = clip_slab(lo[a], hi[a], inv[l], (t0[l], t1[l]));
+                        }
+                    }
+                    // `f32::min` (neither is NaN): the compiler makes `if t <
+                    // d { d = t }` a masked store of the lanes that change,
+                    // which is slow.
+                    for l in 0..LANES {
+                        let t = if t0[l] <= t1[l] { t0[l] } else { f32::INFINITY };
+                        d[l] = d[l].min(t);
+                    }
+                    x += LANES;
+                }
+            }
+        }
+        for (row, out) in out.chunks_mut(w).enumerate().take(rows) {
+            out.copy_from_slice(&depth[row * stride..row * stride + w]);
+        }
     }
 }
 
@@ -910,7 +884,7 @@ mod tests {
         let macrocells = MacrocellGrid::build_any(&volume, 4, None);
         // Visible within 7 voxels of the centre.
         let skip = SkipGrid::build(&macrocells, |lo, _| lo < 70.0);
-        let runs = CellRuns::occupied(&skip);
+        let runs = CellRuns::plain(&skip, false);
         assert_eq!(runs.side, 4.0);
         assert!(runs.runs.len() > 5 && skip.occupied_count() > runs.runs.len());
         let world = |v: Vec3| grid.voxel_to_world(v);
