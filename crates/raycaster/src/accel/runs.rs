@@ -234,9 +234,11 @@ impl<K: Fn(usize) -> Option<u64>> Iterator for SkipRuns<'_, K> {
 /// computed as [`Aabb::exit`] computes the cell box's (so the least of
 /// them is that exit exactly).
 ///
-/// Its coordinates are arrays indexed by the axis the DDA steps along: a
-/// `glam` vector indexed by a run-time axis is a `match` on it, a branch
-/// the processor mispredicts at every other step.
+/// A step's chain from one to the next is only which plane is nearest and
+/// the selects it drives: every field is read at fixed positions (a `glam`
+/// vector or array indexed by a run-time axis went through memory, a store
+/// and a reload a step), and the plane beyond the next on each axis
+/// (`after`) is worked out a step ahead, off that chain.
 ///
 /// [`Aabb::exit`]: crate::geometry::Aabb::exit
 #[derive(Debug, Clone, Copy)]
@@ -244,6 +246,8 @@ struct MacrocellWalk {
     cell: [i32; 3],
     index: isize,
     next: [f32; 3],
+    /// Per axis, where the ray leaves the cell after this one along it.
+    after: [f32; 3],
 }
 
 impl MacrocellWalk {
@@ -254,13 +258,17 @@ impl MacrocellWalk {
             cell,
             index: index as isize,
             next: std::array::from_fn(|a| plane(skip, axes, cell[a], a)),
+            after: std::array::from_fn(|a| plane(skip, axes, cell[a] + axes.step[a], a)),
         }
     }
 
     /// Where the ray leaves the cell.
     #[inline(always)]
     fn exit(&self) -> f32 {
-        self.next[0].min(self.next[1]).min(self.next[2])
+        // No plane is NaN (see `plane`), so the comparisons are `min`.
+        let [n0, n1, n2] = self.next;
+        let m = if n1 < n0 { n1 } else { n0 };
+        if n2 < m { n2 } else { m }
     }
 
     /// The last of this cell and the cells after it along the ray that
@@ -285,20 +293,41 @@ impl MacrocellWalk {
     /// grid (or the ray moves along no axis).
     #[inline(always)]
     fn advance(&mut self, skip: &SkipGrid, axes: &Axes) -> bool {
-        // The axis of the nearest plane, the lowest on a tie, without
-        // branches (which axis comes next is anyone's guess).
-        let n = self.next;
-        let a01 = (n[1] < n[0]) as usize;
-        let a = if n[2] < n[a01] { 2 } else { a01 };
-        let s = axes.step[a];
-        let c = self.cell[a] + s;
+        // The axis of the nearest plane, the lowest on a tie, as three
+        // flags. (Forcing selects without branches on them, with
+        // `select_unpredictable`, or working out only the moving axis's
+        // plane measured no faster.)
+        let [n0, n1, n2] = self.next;
+        let y_before_x = n1 < n0;
+        let z = n2 < if y_before_x { n1 } else { n0 };
+        let y = y_before_x && !z;
+        let x = !y_before_x && !z;
+        let c: [i32; 3] = std::array::from_fn(|a| self.cell[a] + axes.step[a]);
         // One unsigned compare for both ends of the grid.
-        if s == 0 || c as u32 >= axes.count[a] {
+        let inside: [bool; 3] =
+            std::array::from_fn(|a| axes.step[a] != 0 && (c[a] as u32) < axes.count[a]);
+        if !(if z {
+            inside[2]
+        } else if y {
+            inside[1]
+        } else {
+            inside[0]
+        }) {
             return false;
         }
-        self.cell[a] = c;
-        self.index += axes.index_step[a];
-        self.next[a] = plane(skip, axes, c, a);
+        self.index += if z {
+            axes.index_step[2]
+        } else if y {
+            axes.index_step[1]
+        } else {
+            axes.index_step[0]
+        };
+        for (a, moves) in [x, y, z].into_iter().enumerate() {
+            let beyond = plane(skip, axes, c[a] + axes.step[a], a);
+            self.cell[a] = if moves { c[a] } else { self.cell[a] };
+            self.next[a] = if moves { self.after[a] } else { self.next[a] };
+            self.after[a] = if moves { beyond } else { self.after[a] };
+        }
         true
     }
 }
@@ -348,7 +377,8 @@ impl Axes {
 
 /// Where the ray leaves macrocell coordinate `c` on axis `a` (+∞ when it
 /// does not move along `a`), as the slab test of the cell's box computes
-/// it: the box's corner `c·side`, its far side `c·side + side`.
+/// it: the box's corner `c·side`, its far side `c·side + side`. Never NaN:
+/// `1/d` is finite on an axis the ray moves along.
 #[inline(always)]
 fn plane(skip: &SkipGrid, axes: &Axes, c: i32, a: usize) -> f32 {
     let side = skip.cell_side();

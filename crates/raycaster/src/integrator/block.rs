@@ -3,7 +3,8 @@
 //!
 //! The frame driver sets a block's rays up together in vector instructions
 //! (its `FrameJob::pixel_block`) and a packet integrator (the exact iso
-//! mode, [`Integrator::integrate_packet`]) walks them together; both read
+//! mode, [`Integrator::integrate_packet`]) walks them together (DVR takes
+//! the blocks and integrates their rays one by one); both read
 //! and write the lanes where they are, so a ray is not gathered into a
 //! [`RaySegment`] and scattered back into lanes on its way from one to the
 //! other. Lane `l` is the pixel `(l % PACKET_W, l / PACKET_W)` of the

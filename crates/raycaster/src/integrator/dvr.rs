@@ -59,6 +59,11 @@ impl Integrator for DvrState {
 
     const OCCUPANCY: Occupancy = Occupancy::Visible;
 
+    /// The rays come in blocks, set up together in vector instructions,
+    /// and blocks the proxy depths cull are passed over whole; they are
+    /// integrated one by one (`Integrator::integrate_packet`'s default).
+    const PACKETS: bool = true;
+
     /// Composites the span's samples front to back. The samples of a
     /// macrocell that all look up one TF entry are composited without being
     /// taken (`DvrState::composite_constant`): a uniform cell's, and,

@@ -158,7 +158,14 @@ impl RaySegment {
     /// empty box).
     #[inline(always)]
     pub fn first_index_at_or_after(&self, t: f32) -> u32 {
-        let x = (t - self.t0) * self.inv_step - 1e-3;
+        Self::index_at_or_after(self.t0, self.inv_step, t)
+    }
+
+    /// [`RaySegment::first_index_at_or_after`] of a segment whose first
+    /// sample is at `t0`, `inv_step` = `1 / step` (for lane-wise set-ups).
+    #[inline(always)]
+    pub fn index_at_or_after(t0: f32, inv_step: f32, t: f32) -> u32 {
+        let x = (t - t0) * inv_step - 1e-3;
         // ceil without a libm call; `as` saturates negatives and NaN to 0.
         let k = x as u32;
         k + ((k as f32) < x) as u32

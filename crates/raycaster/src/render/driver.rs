@@ -235,9 +235,17 @@ impl<V: Volume> Kernel for PixelBlock<'_, '_, V> {
             None => [0.0; BLOCK],
         };
         block.set_up(grid, origin, &dir, (&t_in, &t_out), plan.step, &jitter);
-        // `pixel_in`'s `max` with the proxy's start (none: −∞).
-        for (t_in, &start) in block.t_in.iter_mut().zip(&start) {
-            *t_in = t_in.max(start);
+        // `pixel_in`'s raise to the proxy's start (none: −∞): of the first
+        // sample kept (DVR), or of where the search starts (exact iso).
+        if plan.proxy_moves_samples {
+            for l in 0..BLOCK {
+                let at = RaySegment::index_at_or_after(block.t0[l], block.inv_step, start[l]);
+                block.first[l] = block.first[l].max(at.min(block.count[l]));
+            }
+        } else {
+            for (t_in, &start) in block.t_in.iter_mut().zip(&start) {
+                *t_in = t_in.max(start);
+            }
         }
         true
     }
@@ -674,16 +682,28 @@ mod tests {
 
     /// The blocks' lane-wise set-up agrees with the pixels' for cameras
     /// outside and inside an anisotropic volume, with and without the
-    /// exact iso mode's proxy depths and with jittered samples.
+    /// proxy depths of the exact iso mode (where the search starts) and of
+    /// DVR (the first sample kept), and with jittered samples.
     #[test]
     fn pixel_blocks_set_up_the_rays_pixel_by_pixel_set_up() {
         let grid = Grid::new(UVec3::new(21, 17, 25), Vec3::new(0.7, 1.3, 0.9));
         let centre = grid.extent() * 0.5;
+        // A ball that the TF shows in the middle of empty space, so the
+        // DVR proxy moves rays' first samples.
         let scene = Scene::new(AnyVolume::from_fn(grid, |v| {
             let p = v.as_vec3() * grid.spacing;
-            (p - centre).length() * 10.0
+            (60.0 - (p - centre).length() * 10.0).max(0.0)
         }));
-        let tf = TransferFunction::preset("ramp", crate::sample::SampleType::F32).unwrap();
+        let point = |value, opacity| crate::transfer::TfPoint {
+            value,
+            color: [1.0; 3],
+            opacity,
+        };
+        let tf = TransferFunction::new(
+            crate::transfer::Interpolation::Linear,
+            vec![point(0.0, 0.0), point(20.0, 0.0), point(60.0, 1.0)],
+        )
+        .unwrap();
         let mut rng = fastrand::Rng::with_seed(3);
         let mut checker = FrameRenderer::with_schedule(CheckFrame::default());
         for trial in 0..24 {
@@ -701,7 +721,7 @@ mod tests {
                 } else {
                     RenderMode::Dvr
                 },
-                iso_value: 60.0,
+                iso_value: 30.0,
                 jitter: trial % 4 == 1,
                 seed: trial,
                 ..RenderOptions::default()
