@@ -238,9 +238,16 @@ impl<V: Volume> Kernel for PixelBlock<'_, '_, V> {
         // `pixel_in`'s raise to the proxy's start (none: −∞): of the first
         // sample kept (DVR), or of where the search starts (exact iso).
         if plan.proxy_moves_samples {
-            for l in 0..BLOCK {
-                let at = RaySegment::index_at_or_after(block.t0[l], block.inv_step, start[l]);
-                block.first[l] = block.first[l].max(at.min(block.count[l]));
+            let inv_step = block.inv_step;
+            for (((first, &count), &t0), &start) in block
+                .first
+                .iter_mut()
+                .zip(&block.count)
+                .zip(&block.t0)
+                .zip(&start)
+            {
+                let at = RaySegment::index_at_or_after(t0, inv_step, start);
+                *first = (*first).max(at.min(count));
             }
         } else {
             for (t_in, &start) in block.t_in.iter_mut().zip(&start) {
