@@ -92,8 +92,7 @@ impl<V: Volume> FrameJob<'_, V> {
         };
         if let Some(t) = start {
             if self.plan.proxy_moves_samples {
-                // At most one sample early, never late.
-                seg.first = seg.first.max(seg.first_index_at_or_after(t).min(seg.count));
+                seg.first = first_kept(seg.first, seg.count, seg.t0, seg.inv_step, t);
             } else {
                 seg.t_in = seg.t_in.max(t);
             }
@@ -246,8 +245,7 @@ impl<V: Volume> Kernel for PixelBlock<'_, '_, V> {
                 .zip(&block.t0)
                 .zip(&start)
             {
-                let at = RaySegment::index_at_or_after(t0, inv_step, start);
-                *first = (*first).max(at.min(count));
+                *first = first_kept(*first, count, t0, inv_step, start);
             }
         } else {
             for (t_in, &start) in block.t_in.iter_mut().zip(&start) {
@@ -256,6 +254,16 @@ impl<V: Volume> Kernel for PixelBlock<'_, '_, V> {
         }
         true
     }
+}
+
+/// The first sample kept of a ray whose samples `first..count` lie at `t0 +
+/// k / inv_step`, raised to the proxy depth `start` (DVR's
+/// [`FramePlan::proxy_moves_samples`]): at most one sample early, never
+/// late. The one formula of [`FrameJob::pixel_in`] and of the blocks'
+/// lane-wise set-up, so both keep the same samples.
+#[inline(always)]
+fn first_kept(first: u32, count: u32, t0: f32, inv_step: f32, start: f32) -> u32 {
+    first.max(RaySegment::index_at_or_after(t0, inv_step, start).min(count))
 }
 
 /// What [`FrameJob::pixel`] found for a pixel's ray.
