@@ -257,6 +257,19 @@ impl CameraFrame {
         d
     }
 
+    /// Where the rays of pixel column `i` and pixel row `j` cross the image
+    /// plane one unit ahead of the eye, along `right` and `up`:
+    /// [`CameraFrame::perspective_dirs`] before they are normalised is
+    /// `forward + x·right + y·up`.
+    #[inline(always)]
+    pub(crate) fn image_plane(&self, i: u32, j: u32) -> (f32, f32) {
+        let (fi, fj) = (i as i32 as f32, j as i32 as f32);
+        (
+            (2.0 * (fi + 0.5) / self.width - 1.0) * self.half_height * self.aspect,
+            (1.0 - 2.0 * (fj + 0.5) / self.height) * self.half_height,
+        )
+    }
+
     /// Continuous pixel coordinates `(i, j)` whose ray passes through world
     /// point `p` (pixel centres are at `k + 0.5`), or `None` when `p` is not in
     /// front of the camera.

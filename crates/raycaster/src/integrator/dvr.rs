@@ -4,7 +4,10 @@
 use glam::{UVec3, Vec3, Vec3A, Vec4};
 
 use super::batch::SampleBatch;
-use super::{Fragment, FrameContext, GradientOpacity, Integrator, Occupancy, RaySegment, Span};
+use super::{
+    BLOCK, Fragment, FrameContext, GradientOpacity, Integrator, Occupancy, RayBlock, RaySegment,
+    Span, integrate_each,
+};
 use crate::accel::RunKind;
 use crate::simd::{self, Isa, Kernel, LANES};
 use crate::volume::{CornerGradients, Volume, corner_gradients, interpolate_gradient};
@@ -61,8 +64,28 @@ impl Integrator for DvrState {
 
     /// The rays come in blocks, set up together in vector instructions,
     /// and blocks the proxy depths cull are passed over whole; they are
-    /// integrated one by one (`Integrator::integrate_packet`'s default).
+    /// integrated one by one (`DvrState::integrate_packet`).
     const PACKETS: bool = true;
+
+    /// One by one, after asking the memory for each ray's first kept
+    /// sample's cell: a ray's first march begins as soon as its walk
+    /// reaches the data, too soon for the march's own prefetch, so the
+    /// block's later rays find their first cells on the way or in the
+    /// cache.
+    #[inline(always)]
+    fn integrate_packet<V: Volume>(
+        ctx: &FrameContext<'_, V>,
+        rays: &mut [Self; BLOCK],
+        block: &RayBlock,
+    ) -> u64 {
+        for l in simd::lanes_of(block.searched) {
+            if !block.is_empty(l) {
+                let seg = block.segment(l);
+                ctx.volume.prefetch(seg.pos(seg.first));
+            }
+        }
+        integrate_each(ctx, rays, block)
+    }
 
     /// Composites the span's samples front to back. The samples of a
     /// macrocell that all look up one TF entry are composited without being
