@@ -217,8 +217,7 @@ impl CameraFrame {
     /// the top), with a unit direction.
     #[inline]
     pub fn ray(&self, i: u32, j: u32) -> Ray {
-        let sx = (2.0 * (i as f32 + 0.5) / self.width - 1.0) * self.half_height * self.aspect;
-        let sy = (1.0 - 2.0 * (j as f32 + 0.5) / self.height) * self.half_height;
+        let (sx, sy) = self.image_plane(i, j);
         match self.projection {
             Projection::Perspective => Ray {
                 origin: self.position,
@@ -240,11 +239,7 @@ impl CameraFrame {
     pub fn perspective_dirs<const N: usize>(&self, i: &[u32; N], j: &[u32; N]) -> [[f32; N]; 3] {
         let mut d = [[0.0f32; N]; 3];
         for l in 0..N {
-            // Through i32: the same value (below 2²⁴), and a conversion
-            // with a vector instruction.
-            let (fi, fj) = (i[l] as i32 as f32, j[l] as i32 as f32);
-            let sx = (2.0 * (fi + 0.5) / self.width - 1.0) * self.half_height * self.aspect;
-            let sy = (1.0 - 2.0 * (fj + 0.5) / self.height) * self.half_height;
+            let (sx, sy) = self.image_plane(i[l], j[l]);
             let x = self.forward.x + sx * self.right.x + sy * self.up.x;
             let y = self.forward.y + sx * self.right.y + sy * self.up.y;
             let z = self.forward.z + sx * self.right.z + sy * self.up.z;
@@ -258,11 +253,15 @@ impl CameraFrame {
     }
 
     /// Where the rays of pixel column `i` and pixel row `j` cross the image
-    /// plane one unit ahead of the eye, along `right` and `up`:
-    /// [`CameraFrame::perspective_dirs`] before they are normalised is
-    /// `forward + x·right + y·up`.
+    /// plane one unit ahead of the eye, along `right` and `up` (`x` depends
+    /// on the column only, `y` on the row only): a perspective ray's
+    /// direction is `forward + x·right + y·up` normalised, an orthographic
+    /// ray starts `(x·right + y·up)·distance` from the eye. Coordinates
+    /// below 2²⁴.
     #[inline(always)]
     pub(crate) fn image_plane(&self, i: u32, j: u32) -> (f32, f32) {
+        // Through i32: the same value (below 2²⁴), and a conversion with a
+        // vector instruction in lane-wise loops.
         let (fi, fj) = (i as i32 as f32, j as i32 as f32);
         (
             (2.0 * (fi + 0.5) / self.width - 1.0) * self.half_height * self.aspect,

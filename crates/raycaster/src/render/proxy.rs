@@ -411,8 +411,7 @@ fn box_of(
 /// row-major) with the boxes `boxes[k]` for `k` in `band`: per pixel, the
 /// least parameter at which its perspective ray enters one of the boxes
 /// it meets, by a slab test against each box whose rectangle holds the
-/// pixel. The rays'
-/// directions are worked out per pixel from the image plane as
+/// pixel. The rays' directions are worked out from the image plane as
 /// [`CameraFrame::perspective_dirs`] does, rounded a little differently
 /// (the inverse of a unit component as the length over the component):
 /// the boxes' [`MARGIN`] covers that, as it covers the rounding of the two
