@@ -306,22 +306,10 @@ impl MacrocellWalk {
         // One unsigned compare for both ends of the grid.
         let inside: [bool; 3] =
             std::array::from_fn(|a| axes.step[a] != 0 && (c[a] as u32) < axes.count[a]);
-        if !(if z {
-            inside[2]
-        } else if y {
-            inside[1]
-        } else {
-            inside[0]
-        }) {
+        if !on_moving_axis(inside, y, z) {
             return false;
         }
-        self.index += if z {
-            axes.index_step[2]
-        } else if y {
-            axes.index_step[1]
-        } else {
-            axes.index_step[0]
-        };
+        self.index += on_moving_axis(axes.index_step, y, z);
         for (a, moves) in [x, y, z].into_iter().enumerate() {
             let beyond = plane(skip, axes, c[a] + axes.step[a], a);
             self.cell[a] = if moves { c[a] } else { self.cell[a] };
@@ -329,6 +317,20 @@ impl MacrocellWalk {
             self.after[a] = if moves { beyond } else { self.after[a] };
         }
         true
+    }
+}
+
+/// The entry of `v` for the axis a DDA step moves along, given as the
+/// flags `y` and `z` (neither: x), chosen by selects rather than by
+/// indexing with a run-time axis (see [`MacrocellWalk`]).
+#[inline(always)]
+fn on_moving_axis<T: Copy>(v: [T; 3], y: bool, z: bool) -> T {
+    if z {
+        v[2]
+    } else if y {
+        v[1]
+    } else {
+        v[0]
     }
 }
 

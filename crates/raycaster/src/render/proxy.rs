@@ -184,11 +184,20 @@ impl ProxyDepth {
                 put(b as usize);
             }
         });
+        // Where each column's rays cross the image plane, for every band
+        // ([`FillRays`]).
+        let across: Vec<f32> = if per_ray {
+            (rect.x0..rect.x1)
+                .map(|i| frame.image_plane(i, 0).0)
+                .collect()
+        } else {
+            Vec::new()
+        };
         let fill_band = |b: usize, out: &mut [f32]| {
             let y0 = b as u32 * BAND;
             let y1 = (y0 + BAND).min(h);
             if per_ray {
-                fill_rays(frame, &rect, (y0, y1), &boxes, bands.get(b), out);
+                fill_rays(frame, &rect, &across, (y0, y1), &boxes, bands.get(b), out);
                 return;
             }
             for &k in bands.get(b) {
@@ -419,6 +428,7 @@ fn box_of(
 fn fill_rays(
     frame: &CameraFrame,
     rect: &PixelRect,
+    across: &[f32],
     rows: (u32, u32),
     boxes: &[Drawn],
     band: &[u32],
@@ -427,6 +437,7 @@ fn fill_rays(
     simd::dispatch(FillRays {
         frame,
         rect,
+        across,
         rows,
         boxes,
         band,
@@ -439,6 +450,9 @@ fn fill_rays(
 struct FillRays<'a> {
     frame: &'a CameraFrame,
     rect: &'a PixelRect,
+    /// Per column of `rect`, where its rays cross the image plane
+    /// ([`CameraFrame::image_plane`]'s `x`).
+    across: &'a [f32],
     rows: (u32, u32),
     boxes: &'a [Drawn],
     band: &'a [u32],
@@ -453,6 +467,7 @@ impl Kernel for FillRays<'_> {
         let FillRays {
             frame,
             rect,
+            across,
             rows: (y0, y1),
             boxes,
             band,
@@ -480,9 +495,6 @@ impl Kernel for FillRays<'_> {
         // square root and three divisions a pixel, where normalising and
         // then inverting took seven, in a plain loop the compiler
         // vectorises (the bands' set-up had been a third of the fill).
-        let across: Vec<f32> = (0..stride)
-            .map(|x| frame.image_plane(rect.x0 + x.min(w - 1) as u32, 0).0)
-            .collect();
         let (forward, right, up) = (frame.forward, frame.right, frame.up);
         for row in 0..rows {
             let y = frame.image_plane(0, rect.y0 + y0 + row as u32).1;
@@ -493,8 +505,7 @@ impl Kernel for FillRays<'_> {
                 &mut iy[row * stride..][..stride],
                 &mut iz[row * stride..][..stride],
             );
-            for x in 0..stride {
-                let sx = across[x];
+            for (x, &sx) in across.iter().enumerate() {
                 let (dx, dy, dz) = (
                     base.x + sx * right.x,
                     base.y + sx * right.y,
@@ -504,6 +515,10 @@ impl Kernel for FillRays<'_> {
                 ix[x] = (len / dx).clamp(-f32::MAX, f32::MAX);
                 iy[x] = (len / dy).clamp(-f32::MAX, f32::MAX);
                 iz[x] = (len / dz).clamp(-f32::MAX, f32::MAX);
+            }
+            for inv in [ix, iy, iz] {
+                let last = inv[w - 1];
+                inv[w..].fill(last);
             }
         }
         let mut depth = vec![f32::INFINITY; rows * stride];
